@@ -1,0 +1,1 @@
+"""Code generation: model -> float32 C through Jinja2 templates."""

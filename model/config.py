@@ -1,0 +1,207 @@
+"""Load and validate the manipulator model file.
+
+Every error names the file and the dotted key, so a user who mistypes a number in
+manipulator.toml is told exactly where. The loader returns plain frozen dataclasses;
+the symbolic modules read nothing else.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+DEFAULT_MODEL = Path(__file__).with_name("manipulator.toml")
+JOINTS = ("theta1", "theta2", "theta3")
+
+
+class ModelError(ValueError):
+    """The model file is missing, unreadable or inconsistent."""
+
+
+@dataclass(frozen=True)
+class JointLimit:
+    min_deg: float
+    max_deg: float
+
+    @property
+    def min_rad(self) -> float:
+        return math.radians(self.min_deg)
+
+    @property
+    def max_rad(self) -> float:
+        return math.radians(self.max_deg)
+
+
+@dataclass(frozen=True)
+class Servo:
+    id: int
+    zero: int
+    direction: int
+
+
+@dataclass(frozen=True)
+class Filter:
+    cutoff: float
+    order: int
+
+
+@dataclass(frozen=True)
+class Model:
+    path: Path
+    sha256: str
+    L1: float
+    L2: float
+    L3: float
+    limits: tuple[JointLimit, JointLimit, JointLimit]
+    body_z: float
+    leg_angles: tuple[float, ...]
+    leg_half_width: float
+    leg_distance: float
+    servo_baud: int
+    servo_units_max: int
+    servo_range_deg: float
+    servos: tuple[Servo, Servo, Servo]
+    sample_rate: float
+    accel_filter: Filter
+    gyro_filter: Filter
+    complementary_gyro_weight: float
+
+
+class _Reader:
+    """Typed access to the parsed TOML with errors that name file and key."""
+
+    def __init__(self, path: Path, data: dict):
+        self.path = path
+        self.data = data
+
+    def fail(self, key: str, message: str) -> ModelError:
+        return ModelError(f"{self.path}: {key}: {message}")
+
+    def get(self, key: str):
+        node = self.data
+        for part in key.split("."):
+            if not isinstance(node, dict) or part not in node:
+                raise self.fail(key, "missing")
+            node = node[part]
+        return node
+
+    def number(self, key: str, *, positive=False, nonnegative=False, lo=None, hi=None) -> float:
+        value = self.get(key)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.fail(key, f"expected a number, got {type(value).__name__} {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(key, f"must be finite, got {value}")
+        if positive and value <= 0:
+            raise self.fail(key, f"must be positive, got {value}")
+        if nonnegative and value < 0:
+            raise self.fail(key, f"must not be negative, got {value}")
+        if lo is not None and value < lo:
+            raise self.fail(key, f"must be >= {lo}, got {value}")
+        if hi is not None and value > hi:
+            raise self.fail(key, f"must be <= {hi}, got {value}")
+        return value
+
+    def integer(self, key: str, *, lo=None, hi=None, choices=None) -> int:
+        value = self.get(key)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise self.fail(key, f"expected an integer, got {type(value).__name__} {value!r}")
+        if lo is not None and value < lo:
+            raise self.fail(key, f"must be >= {lo}, got {value}")
+        if hi is not None and value > hi:
+            raise self.fail(key, f"must be <= {hi}, got {value}")
+        if choices is not None and value not in choices:
+            raise self.fail(key, f"must be one of {sorted(choices)}, got {value}")
+        return value
+
+    def number_list(self, key: str, *, lo=None, hi=None) -> tuple[float, ...]:
+        value = self.get(key)
+        if not isinstance(value, list):
+            raise self.fail(key, f"expected a list of numbers, got {type(value).__name__}")
+        out = []
+        for i, item in enumerate(value):
+            if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):
+                raise self.fail(f"{key}[{i}]", f"expected a finite number, got {item!r}")
+            if (lo is not None and item < lo) or (hi is not None and item > hi):
+                raise self.fail(f"{key}[{i}]", f"must be within [{lo}, {hi}], got {item}")
+            out.append(float(item))
+        return tuple(out)
+
+
+def load(path: str | Path = DEFAULT_MODEL) -> Model:
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ModelError(f"{path}: cannot read the model file: {exc.strerror}") from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise ModelError(f"{path}: not valid TOML: {exc}") from None
+    r = _Reader(path, data)
+
+    limits = []
+    for name in JOINTS:
+        lo = r.number(f"joints.{name}.min", lo=-180.0, hi=180.0)
+        hi = r.number(f"joints.{name}.max", lo=-180.0, hi=180.0)
+        if lo >= hi:
+            raise r.fail(f"joints.{name}", f"min ({lo}) must be less than max ({hi})")
+        limits.append(JointLimit(lo, hi))
+
+    units_max = r.integer("servo.units_max", lo=1, hi=65535)
+    range_deg = r.number("servo.range_deg", positive=True, hi=360.0)
+    servos = []
+    for name in JOINTS:
+        servos.append(Servo(
+            id=r.integer(f"servo.{name}.id", lo=0, hi=253),
+            zero=r.integer(f"servo.{name}.zero", lo=0, hi=units_max),
+            direction=r.integer(f"servo.{name}.direction", choices={-1, 1}),
+        ))
+    if len({s.id for s in servos}) != len(servos):
+        raise r.fail("servo", f"servo ids must differ, got {[s.id for s in servos]}")
+
+    sample_rate = r.number("imu.sample_rate", positive=True)
+    filters = []
+    for sensor in ("accel", "gyro"):
+        cutoff = r.number(f"filters.{sensor}.cutoff", positive=True)
+        if cutoff >= sample_rate / 2:
+            raise r.fail(f"filters.{sensor}.cutoff",
+                         f"must be below the Nyquist frequency {sample_rate / 2} Hz, got {cutoff}")
+        filters.append(Filter(cutoff, r.integer(f"filters.{sensor}.order", lo=1, hi=8)))
+
+    model = Model(
+        path=path,
+        sha256=hashlib.sha256(raw).hexdigest(),
+        L1=r.number("geometry.L1", nonnegative=True),
+        L2=r.number("geometry.L2", positive=True),
+        L3=r.number("geometry.L3", positive=True),
+        limits=tuple(limits),
+        body_z=r.number("collision.body_z"),
+        leg_angles=r.number_list("collision.leg_angles", lo=-180.0, hi=180.0),
+        leg_half_width=r.number("collision.leg_half_width", nonnegative=True, hi=90.0),
+        leg_distance=r.number("collision.leg_distance", positive=True),
+        servo_baud=r.integer("servo.baud", lo=7843, hi=1_000_000),
+        servo_units_max=units_max,
+        servo_range_deg=range_deg,
+        servos=tuple(servos),
+        sample_rate=sample_rate,
+        accel_filter=filters[0],
+        gyro_filter=filters[1],
+        complementary_gyro_weight=r.number("estimator.complementary_gyro_weight", lo=0.0, hi=1.0),
+    )
+    _check_servo_travel(r, model)
+    return model
+
+
+def _check_servo_travel(r: _Reader, model: Model) -> None:
+    """Every joint limit must map inside the servo's 0..units_max range."""
+    units_per_deg = model.servo_units_max / model.servo_range_deg
+    for name, limit, servo in zip(JOINTS, model.limits, model.servos):
+        for deg in (limit.min_deg, limit.max_deg):
+            units = servo.zero + servo.direction * deg * units_per_deg
+            if not 0 <= units <= model.servo_units_max:
+                raise r.fail(f"joints.{name}",
+                             f"limit {deg} deg maps to servo position {units:.1f}, outside "
+                             f"0..{model.servo_units_max} (check servo.{name}.zero)")

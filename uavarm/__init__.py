@@ -1,0 +1,1 @@
+"""Host side of the uavarm toolchain: C build, link client, simulator, command line."""
