@@ -1,0 +1,29 @@
+"""Joint angle <-> AX-12A position units, from the model file's zero and direction."""
+from __future__ import annotations
+
+import sympy as sp
+
+from .config import Model
+
+
+def units_per_rad(m: Model) -> sp.Expr:
+    return sp.nsimplify(m.servo_units_max) / (sp.pi * sp.nsimplify(m.servo_range_deg) / 180)
+
+
+def joint_to_units(m: Model, joint: int, angle) -> sp.Expr:
+    s = m.servos[joint]
+    return s.zero + s.direction * angle * units_per_rad(m)
+
+
+def units_to_joint(m: Model, joint: int, units) -> sp.Expr:
+    s = m.servos[joint]
+    return s.direction * (units - s.zero) / units_per_rad(m)
+
+
+def unit_range(m: Model, joint: int) -> tuple[int, int]:
+    """The servo positions that lie inside the joint's travel limits (whole units)."""
+    import math
+    lim = m.limits[joint]
+    ends = sorted(float(joint_to_units(m, joint, sp.rad(sp.nsimplify(d))))
+                  for d in (lim.min_deg, lim.max_deg))
+    return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)
