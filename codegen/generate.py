@@ -85,6 +85,7 @@ def kinematics_context(m: config.Model):
         "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q),
         "ik": {"lines": temps + assigns, "ops": op_count(ik_exprs)},
         "dh": kinematics.dh_rows(m),
+        "target_bound": float32_literal(2 * (m.L1 + m.L2 + m.L3)),
         "limits": [(float32_literal(l.min_rad), float32_literal(l.max_rad)) for l in m.limits],
     }
 
