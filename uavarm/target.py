@@ -1,0 +1,46 @@
+"""Cortex-M4 emulation (../shared/tools/m4count.py) for the bench and the target tests."""
+from __future__ import annotations
+
+import importlib.util
+import math
+import os
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+from . import cbuild
+
+M4COUNT = Path(os.environ.get("M4COUNT", cbuild.ROOT.parent / "shared" / "tools" / "m4count.py"))
+# m4count adds the CPU/FPU flags itself; these are the project's own.
+M4_CFLAGS = [f for f in cbuild.COMMON_FLAGS if not f.startswith("-O")]
+
+
+@lru_cache(maxsize=None)
+def m4count():
+    """The m4count module, or a clear error saying where it was looked for."""
+    if not M4COUNT.exists():
+        raise FileNotFoundError(f"m4count not found at {M4COUNT} (set M4COUNT=path/to/m4count.py)")
+    spec = importlib.util.spec_from_file_location("m4count", M4COUNT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["m4count"] = module          # its dataclasses look themselves up here
+    spec.loader.exec_module(module)
+    return module
+
+
+def reference_defines(m) -> list[str]:
+    """-D flags giving bench/reference.c the model's numbers (it writes none itself)."""
+    from .model import filters
+    f = lambda v: f"{float(v)!r}f"
+    arr = lambda vs: "{" + ",".join(f(v) for v in vs) + "}"
+    accel = filters.sensor_filters(m)["accel"][0]
+    return [
+        f"-DREF_L1={f(m.L1)}", f"-DREF_L2={f(m.L2)}", f"-DREF_L3={f(m.L3)}",
+        f"-DREF_QMIN={arr(l.min_rad for l in m.limits)}",
+        f"-DREF_QMAX={arr(l.max_rad for l in m.limits)}",
+        f"-DREF_BODY_Z={f(m.body_z)}",
+        f"-DREF_NLEGS={len(m.leg_angles)}",
+        f"-DREF_LEGS={arr(math.radians(a) for a in m.leg_angles)}",
+        f"-DREF_LEG_HALF_WIDTH={f(math.radians(m.leg_half_width))}",
+        f"-DREF_LEG_DISTANCE={f(m.leg_distance)}",
+        f"-DREF_ACCEL_B={arr(accel.b)}", f"-DREF_ACCEL_A={arr(accel.a)}",
+    ]
