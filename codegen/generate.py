@@ -15,7 +15,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import collision, config, filters, kinematics, servo
+from ..model import collision, config, filters, kinematics, messages, servo
 from . import approx
 from .printer import c, cse_lines, float32_literal, op_count
 
@@ -136,11 +136,14 @@ OUTPUTS = {
     "servo_map.h": "servo_map.h.j2",
     "servo_map.c": "servo_map.c.j2",
     "model_params.h": "model_params.h.j2",
+    "messages.h": "messages.h.j2",
+    "messages.c": "messages.c.j2",
 }
 
 
 def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
     m = config.load(model_path)
+    messages.check()
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
     try:
@@ -159,6 +162,9 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "servo": servo_context(m),
         "fm": fastmath_context(),
         "lit": float32_literal,
+        "messages": messages.MESSAGES,
+        "types": messages.TYPES,
+        "wire_types": messages.wire_types(),
     }
     return {name: env.get_template(tpl).render(ctx, file_name=name) for name, tpl in OUTPUTS.items()}
 

@@ -1,0 +1,80 @@
+"""LLCP message layouts, written once: the generator emits the C pack/unpack functions and
+uavarm.messages builds the Python codec from the same table.
+
+On the wire each payload is the message id followed by the fields as a packed
+little-endian C struct (what the MRS llcp peer sends and expects). Device -> drone
+payloads stay <= 127 bytes (the ROS peer truncates longer ones).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+# field type -> (C type, struct format character, size in bytes)
+TYPES = {
+    "u8": ("uint8_t", "B", 1),
+    "u16": ("uint16_t", "H", 2),
+    "u32": ("uint32_t", "I", 4),
+    "i32": ("int32_t", "i", 4),
+    "f32": ("float", "f", 4),
+}
+TX_MAX_PAYLOAD = 127
+
+
+@dataclass(frozen=True)
+class Message:
+    name: str
+    id: int
+    direction: str            # "to_arm" or "to_drone"
+    fields: tuple             # ((name, type), ...)
+    doc: str
+
+    @property
+    def size(self) -> int:
+        """Payload bytes including the id byte."""
+        return 1 + sum(TYPES[t][2] for _, t in self.fields)
+
+    @property
+    def struct_format(self) -> str:
+        return "<B" + "".join(TYPES[t][1] for _, t in self.fields)
+
+
+MESSAGES = (
+    Message("enable", 0x10, "to_arm", (("on", "u8"),),
+            "1: servo power on, park and hold; 0: servo power off at once, engage cleared"),
+    Message("engage", 0x11, "to_arm", (("on", "u8"),),
+            "1 (only while enabled): go to the set position and stabilise; 0: park"),
+    Message("set_position", 0x12, "to_arm", (("x", "f32"), ("y", "f32"), ("z", "f32")),
+            "end-effector target in mm, gravity-aligned heading-following frame at the arm's base"),
+    Message("heartbeat", 0x20, "to_drone", (
+        ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"),
+        ("faults", "u16"),
+        ("servo1_error", "u8"), ("servo2_error", "u8"), ("servo3_error", "u8"),
+        ("set_x", "f32"), ("set_y", "f32"), ("set_z", "f32"),
+        ("q1", "f32"), ("q2", "f32"), ("q3", "f32"),
+        ("link_frames_ok", "u16"), ("link_errors", "u16"), ("servo_timeouts", "u16"),
+    ), "every 500 ms: state, set position, joint angles (rad), fault flags and counters"),
+)
+
+
+def wire_types(messages=MESSAGES) -> set[str]:
+    """The field types in use, with those their C byte helpers are built from."""
+    needs = {"u8": set(), "u16": {"u8"}, "u32": {"u16"}, "i32": {"u32"}, "f32": {"u32"}}
+    todo = {"u8"} | {t for m in messages for _, t in m.fields}
+    used = set()
+    while todo:
+        t = todo.pop()
+        used.add(t)
+        todo |= needs[t] - used
+    return used
+
+
+def check(messages=MESSAGES) -> None:
+    ids = [m.id for m in messages]
+    if len(set(ids)) != len(ids):
+        raise ValueError(f"message ids must differ: {ids}")
+    for m in messages:
+        if m.direction == "to_drone" and m.size > TX_MAX_PAYLOAD:
+            raise ValueError(f"{m.name}: {m.size} bytes exceeds the {TX_MAX_PAYLOAD}-byte LLCP limit")
+        for name, t in m.fields:
+            if t not in TYPES:
+                raise ValueError(f"{m.name}.{name}: unknown type {t}")

@@ -1,0 +1,39 @@
+"""Python codec of the LLCP messages, built from the one table in model/messages.py."""
+from __future__ import annotations
+
+import struct
+
+from .model.messages import MESSAGES, Message
+
+BY_NAME = {m.name: m for m in MESSAGES}
+BY_ID = {m.id: m for m in MESSAGES}
+
+
+class MessageError(ValueError):
+    """A payload that is not a known message of the right length, or bad fields."""
+
+
+def encode(name: str, **fields) -> bytes:
+    try:
+        msg = BY_NAME[name]
+    except KeyError:
+        raise MessageError(f"unknown message {name!r}; known: {sorted(BY_NAME)}") from None
+    names = [f for f, _ in msg.fields]
+    if set(fields) != set(names):
+        raise MessageError(f"{name} needs fields {names}, got {sorted(fields)}")
+    try:
+        return struct.pack(msg.struct_format, msg.id, *(fields[f] for f in names))
+    except struct.error as exc:
+        raise MessageError(f"{name}: {exc}") from None
+
+
+def decode(payload: bytes) -> tuple[str, dict]:
+    if not payload:
+        raise MessageError("empty payload")
+    msg: Message | None = BY_ID.get(payload[0])
+    if msg is None:
+        raise MessageError(f"unknown message id 0x{payload[0]:02X}")
+    if len(payload) != msg.size:
+        raise MessageError(f"{msg.name}: {len(payload)} bytes, expected {msg.size}")
+    values = struct.unpack(msg.struct_format, payload)[1:]
+    return msg.name, dict(zip((f for f, _ in msg.fields), values))
