@@ -29,22 +29,20 @@ Q = [f"q[{i}]" for i in range(3)]
 
 
 def _trig_free(exprs):
-    """Replace sin(q_i)/cos(q_i) by locals filled by fm_sincosf; returns (exprs, calls)."""
-    q = kinematics.JOINT_SYMBOLS
-    sins = [sp.Symbol(f"s{i + 1}") for i in range(3)]
-    coss = [sp.Symbol(f"c{i + 1}") for i in range(3)]
+    """Replace sin(q_i)/cos(q_i) by locals filled by fm_sincosf; returns (exprs, C lines)."""
+    pairs = [(sp.Symbol(f"s{i + 1}"), sp.Symbol(f"c{i + 1}")) for i in range(3)]
     subs = {}
-    for qi, si, ci in zip(q, sins, coss):
+    for qi, (si, ci) in zip(kinematics.JOINT_SYMBOLS, pairs):
         subs[sp.sin(qi)] = si
         subs[sp.cos(qi)] = ci
     expand = lambda e: e.replace(lambda a: isinstance(a, (sp.sin, sp.cos)), sp.expand_trig)
     out = [expand(sp.sympify(e)).subs(subs) for e in exprs]
     used = set().union(*(e.free_symbols for e in out))
-    calls = [f"fm_sincosf(q[{i}], &{s}, &{cc});" for i, (s, cc) in enumerate(zip(sins, coss))
-             if s in used or cc in used]
-    names = [str(s) for i, s in enumerate(sins) if sins[i] in used or coss[i] in used]
-    decl = [f"float {', '.join(f's{n[1:]}, c{n[1:]}' for n in names)};"] if names else []
-    return out, decl + calls
+    joints = [i for i, (si, ci) in enumerate(pairs) if si in used or ci in used]
+    if not joints:
+        return out, []
+    decl = "float " + ", ".join(f"{pairs[i][0]}, {pairs[i][1]}" for i in joints) + ";"
+    return out, [decl] + [f"fm_sincosf(q[{i}], &{pairs[i][0]}, &{pairs[i][1]});" for i in joints]
 
 
 def _bind(exprs, symbols, c_names):

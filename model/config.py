@@ -197,10 +197,10 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:
     """Every joint limit must map inside the servo's 0..units_max range."""
-    units_per_deg = model.servo_units_max / model.servo_range_deg
-    for name, limit, servo in zip(JOINTS, model.limits, model.servos):
+    from . import servo   # servo builds on Model; imported here to avoid an import cycle
+    for j, (name, limit) in enumerate(zip(JOINTS, model.limits)):
         for deg in (limit.min_deg, limit.max_deg):
-            units = servo.zero + servo.direction * deg * units_per_deg
+            units = float(servo.joint_to_units(model, j, math.radians(deg)))
             if not 0 <= units <= model.servo_units_max:
                 raise r.fail(f"joints.{name}",
                              f"limit {deg} deg maps to servo position {units:.1f}, outside "

@@ -74,7 +74,6 @@ class IkCandidate:
 @dataclass(frozen=True)
 class IkModel:
     rho: sp.Expr          # horizontal distance of the target from the base axis
-    r2: sp.Expr           # squared distance of the target from the shoulder
     disc: sp.Expr         # >= 0 exactly when the target is within the two-link reach
     candidates: tuple[IkCandidate, ...]
 
@@ -116,7 +115,7 @@ def ik(m: Model) -> IkModel:
             cos_q1=sign * x, sin_q1=-sign * y, angle_scale=rho,   # cos, sin of theta1 times rho
             ee_rho=rho, ee_z=z, j3_rho=j3[0], j3_z=j3[1], j3_scale=j3[2])
         candidates.append(IkCandidate(is_toward, elbow, q, geometry))
-    return IkModel(rho=rho, r2=r2, disc=disc, candidates=tuple(candidates))
+    return IkModel(rho=rho, disc=disc, candidates=tuple(candidates))
 
 
 def joint_limits_ok(m: Model, q) -> sp.Boolean:

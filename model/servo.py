@@ -1,6 +1,8 @@
 """Joint angle <-> AX-12A position units, from the model file's zero and direction."""
 from __future__ import annotations
 
+import math
+
 import sympy as sp
 
 from .config import Model
@@ -22,7 +24,6 @@ def units_to_joint(m: Model, joint: int, units) -> sp.Expr:
 
 def unit_range(m: Model, joint: int) -> tuple[int, int]:
     """The servo positions that lie inside the joint's travel limits (whole units)."""
-    import math
     lim = m.limits[joint]
     ends = sorted(float(joint_to_units(m, joint, sp.rad(sp.nsimplify(d))))
                   for d in (lim.min_deg, lim.max_deg))
