@@ -15,7 +15,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import collision, config, filters, kinematics, messages, servo
+from ..model import attitude, collision, config, filters, kinematics, messages, servo
 from . import approx
 from .printer import c, cse_lines, float32_literal, op_count
 
@@ -28,31 +28,31 @@ REGENERATE = "make codegen"
 Q = [f"q[{i}]" for i in range(3)]
 
 
-def _trig_free(exprs):
-    """Replace sin(q_i)/cos(q_i) by locals filled by fm_sincosf; returns (exprs, C lines)."""
-    pairs = [(sp.Symbol(f"s{i + 1}"), sp.Symbol(f"c{i + 1}")) for i in range(3)]
+def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", "c1", "s2", "c2", "s3", "c3")):
+    """Replace sin/cos of the angles by locals filled by fm_sincosf; returns (exprs, C lines)."""
+    pairs = [(sp.Symbol(names[2 * i]), sp.Symbol(names[2 * i + 1])) for i in range(len(angles))]
     subs = {}
-    for qi, (si, ci) in zip(kinematics.JOINT_SYMBOLS, pairs):
-        subs[sp.sin(qi)] = si
-        subs[sp.cos(qi)] = ci
+    for a, (si, ci) in zip(angles, pairs):
+        subs[sp.sin(a)] = si
+        subs[sp.cos(a)] = ci
     expand = lambda e: e.replace(lambda a: isinstance(a, (sp.sin, sp.cos)), sp.expand_trig)
     out = [expand(sp.sympify(e)).subs(subs) for e in exprs]
     used = set().union(*(e.free_symbols for e in out))
-    joints = [i for i, (si, ci) in enumerate(pairs) if si in used or ci in used]
-    if not joints:
+    present = [i for i, (si, ci) in enumerate(pairs) if si in used or ci in used]
+    if not present:
         return out, []
-    decl = "float " + ", ".join(f"{pairs[i][0]}, {pairs[i][1]}" for i in joints) + ";"
-    return out, [decl] + [f"fm_sincosf(q[{i}], &{pairs[i][0]}, &{pairs[i][1]});" for i in joints]
+    decl = "float " + ", ".join(f"{pairs[i][0]}, {pairs[i][1]}" for i in present) + ";"
+    return out, [decl] + [f"fm_sincosf({c_angles[i]}, &{pairs[i][0]}, &{pairs[i][1]});" for i in present]
 
 
 def _bind(exprs, symbols, c_names):
     return [sp.sympify(e).subs({s: sp.Symbol(n) for s, n in zip(symbols, c_names)}) for e in exprs]
 
 
-def _function(outputs, symbols, c_names, prefix="t"):
+def _function(outputs, symbols, c_names, prefix="t", **trig):
     """Body lines of a C function computing [(lvalue, expr)] from inputs named c_names."""
     lhs = [l for l, _ in outputs]
-    exprs, pre = _trig_free([e for _, e in outputs])
+    exprs, pre = _trig_free([e for _, e in outputs], **trig)
     exprs = _bind(exprs, symbols, c_names)
     temps, assigns = cse_lines(list(zip(lhs, exprs)), prefix)
     return {"lines": pre + temps + assigns, "ops": op_count(exprs)}
@@ -114,6 +114,62 @@ def servo_context(m: config.Model):
     return {"joints": joints}
 
 
+def estimator_context(m: config.Model):
+    acc, gyro, p = (attitude.ACC, attitude.GYRO, attitude.P_LEVEL)
+    acc_c = [f"acc[{i}]" for i in range(3)]
+    gyro_c = [f"gyro[{i}]" for i in range(3)]
+    p_c = [f"p_level[{i}]" for i in range(3)]
+    tilt = attitude.tilt_from_accel(m)
+    step = attitude.complementary_step(m)
+    rot = attitude.level_to_base(attitude.roll, attitude.pitch) * sp.Matrix(p)
+    angles = dict(angles=(attitude.roll, attitude.pitch), c_angles=("roll", "pitch"),
+                  names=("sr", "cr", "sp", "cp"))
+    return {
+        "tilt": _function([("*roll", tilt[0]), ("*pitch", tilt[1])], acc, acc_c),
+        "step": _function([("const float next_roll", step[0]), ("const float next_pitch", step[1])],
+                          acc + gyro, acc_c + gyro_c, **angles),
+        "to_base": _function([(f"p_base[{i}]", rot[i]) for i in range(3)], p, p_c, **angles),
+        "mounting": [[float(v) for v in row] for row in attitude.mounting(m).tolist()],
+    }
+
+
+def params_context(m: config.Model):
+    """Model numbers the application uses as they are (units, register values, ms)."""
+    ms = lambda s: round(s * 1000)
+    lsb_per_g = 16384 >> config.ACCEL_RANGES_G[m.accel_range_g]
+    return {
+        "park": [float32_literal(sp.rad(sp.nsimplify(d))) for d in m.park_deg],
+        "park_speed": servo.speed_units(m.park_speed_rpm),
+        "working_speed": servo.speed_units(m.working_speed_rpm),
+        "angle_limits": [servo.unit_range(m, j) for j in range(3)],
+        "return_delay": m.servo_return_delay_us // 2,
+        "boot_ms": ms(m.servo_boot_time),
+        "silence_ms": ms(m.link_silence_timeout),
+        "heartbeat_ms": ms(m.heartbeat_period),
+        "frame_gap_ms": ms(m.link_frame_gap),
+        "tick_us": round(1e6 / m.sample_rate),
+        "smplrt_div": round(1000 / m.sample_rate) - 1,
+        "dlpf_cfg": config.DLPF_BANDWIDTHS[m.dlpf_bandwidth],
+        "accel_fs_sel": config.ACCEL_RANGES_G[m.accel_range_g],
+        "gyro_fs_sel": config.GYRO_RANGES_DPS[m.gyro_range_dps],
+        "accel_g_per_lsb": float32_literal(sp.Rational(1, lsb_per_g)),
+        # full scale over 32768 LSB (the datasheet's 131, 65.5, 32.8, 16.4 LSB/(deg/s) rounded it)
+        "gyro_rad_per_lsb": float32_literal(sp.pi * m.gyro_range_dps / 180 / 32768),
+    }
+
+
+def check_park(m: config.Model) -> None:
+    """The parked pose must pass the same checks the firmware applies to every command."""
+    q = [sp.rad(sp.nsimplify(d)) for d in m.park_deg]
+    subs = dict(zip(kinematics.JOINT_SYMBOLS, q))
+    geo = kinematics.fk_geometry(m)
+    for what, cond in (("outside the joint limits", kinematics.joint_limits_ok(m, kinematics.JOINT_SYMBOLS)),
+                       ("not below the body", collision.body_clear(m, geo)),
+                       ("in a landing leg", collision.legs_clear(m, geo))):
+        if not bool(cond.subs(subs)):
+            raise config.ModelError(f"{m.path}: park.q: the parked pose {list(m.park_deg)} deg is {what}")
+
+
 def fastmath_context():
     k = approx.fit()
     lit = lambda vals: [float32_literal(v) for v in vals]
@@ -134,6 +190,8 @@ OUTPUTS = {
     "servo_map.h": "servo_map.h.j2",
     "servo_map.c": "servo_map.c.j2",
     "model_params.h": "model_params.h.j2",
+    "estimator.h": "estimator.h.j2",
+    "estimator.c": "estimator.c.j2",
     "messages.h": "messages.h.j2",
     "messages.c": "messages.c.j2",
 }
@@ -141,6 +199,7 @@ OUTPUTS = {
 
 def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
     m = config.load(model_path)
+    check_park(m)
     messages.check()
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(TEMPLATES), undefined=jinja2.StrictUndefined,
                              keep_trailing_newline=True, trim_blocks=True, lstrip_blocks=True)
@@ -159,8 +218,11 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "filt": filters_context(m),
         "servo": servo_context(m),
         "fm": fastmath_context(),
+        "est": estimator_context(m),
+        "params": params_context(m),
         "lit": float32_literal,
         "messages": messages.MESSAGES,
+        "faults": messages.FAULTS,
         "types": messages.TYPES,
         "wire_types": messages.wire_types(),
     }

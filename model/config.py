@@ -14,6 +14,11 @@ from pathlib import Path
 
 DEFAULT_MODEL = Path(__file__).with_name("manipulator.toml")
 JOINTS = ("theta1", "theta2", "theta3")
+# MPU-6050 choices (register value of each setting, PS-MPU-6000A rev 3.4 section 4)
+ACCEL_RANGES_G = {2: 0, 4: 1, 8: 2, 16: 3}             # AFS_SEL
+GYRO_RANGES_DPS = {250: 0, 500: 1, 1000: 2, 2000: 3}   # FS_SEL
+DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
+SPEED_RPM_MAX = 1023 * 0.111        # AX-12A Moving Speed register limit
 
 
 class ModelError(ValueError):
@@ -63,7 +68,20 @@ class Model:
     servo_units_max: int
     servo_range_deg: float
     servos: tuple[Servo, Servo, Servo]
+    servo_return_delay_us: int
+    park_speed_rpm: float
+    working_speed_rpm: float
+    servo_boot_time: float
+    park_deg: tuple[float, float, float]
+    link_silence_timeout: float
+    heartbeat_period: float
+    link_frame_gap: float
     sample_rate: float
+    imu_address: int
+    accel_range_g: int
+    gyro_range_dps: int
+    dlpf_bandwidth: int
+    imu_mounting_rpy_deg: tuple[float, float, float]
     accel_filter: Filter
     gyro_filter: Filter
     complementary_gyro_weight: float
@@ -163,6 +181,15 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         raise r.fail("servo", f"servo ids must differ, got {[s.id for s in servos]}")
 
     sample_rate = r.number("imu.sample_rate", positive=True)
+    divider = 1000.0 / sample_rate
+    if divider != round(divider) or not 1 <= divider <= 256:
+        raise r.fail("imu.sample_rate", f"must be 1000 Hz / n for n in 1..256 (MPU-6050 SMPLRT_DIV), "
+                                        f"got {sample_rate}")
+    return_delay = r.integer("servo.return_delay_us", lo=0, hi=508)
+    if return_delay % 2:
+        raise r.fail("servo.return_delay_us", f"must be even (2 us steps), got {return_delay}")
+    park = _three(r, "park.q")
+    heartbeat = r.number("link.heartbeat_period", positive=True, hi=60.0)
     filters = []
     for sensor in ("accel", "gyro"):
         cutoff = r.number(f"filters.{sensor}.cutoff", positive=True)
@@ -186,13 +213,33 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         servo_units_max=units_max,
         servo_range_deg=range_deg,
         servos=tuple(servos),
+        servo_return_delay_us=return_delay,
+        park_speed_rpm=r.number("servo.park_speed_rpm", lo=0.111, hi=SPEED_RPM_MAX),
+        working_speed_rpm=r.number("servo.working_speed_rpm", lo=0.111, hi=SPEED_RPM_MAX),
+        servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
+        park_deg=park,
+        link_silence_timeout=r.number("link.silence_timeout", lo=2 / sample_rate, hi=3600.0),
+        heartbeat_period=heartbeat,
+        link_frame_gap=r.number("link.frame_gap", positive=True, hi=10.0),
         sample_rate=sample_rate,
+        imu_address=r.integer("imu.i2c_address", choices={0x68, 0x69}),
+        accel_range_g=r.integer("imu.accel_range_g", choices=set(ACCEL_RANGES_G)),
+        gyro_range_dps=r.integer("imu.gyro_range_dps", choices=set(GYRO_RANGES_DPS)),
+        dlpf_bandwidth=r.integer("imu.dlpf_bandwidth", choices=set(DLPF_BANDWIDTHS)),
+        imu_mounting_rpy_deg=_three(r, "imu.mounting_rpy"),
         accel_filter=filters[0],
         gyro_filter=filters[1],
         complementary_gyro_weight=r.number("estimator.complementary_gyro_weight", lo=0.0, hi=1.0),
     )
     _check_servo_travel(r, model)
     return model
+
+
+def _three(r: _Reader, key: str) -> tuple[float, float, float]:
+    values = r.number_list(key, lo=-180.0, hi=180.0)
+    if len(values) != 3:
+        raise r.fail(key, f"expected 3 angles in degrees, got {len(values)}")
+    return values
 
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:

@@ -55,6 +55,17 @@ MESSAGES = (
     ), "every 500 ms: state, set position, joint angles (rad), fault flags and counters"),
 )
 
+# Bits of heartbeat.faults, lowest first. Latched ones stay set until the next enable.
+FAULTS = (
+    ("servo_timeout", "a servo's status read went unanswered after every retry (latest round)"),
+    ("servo_error", "a servo's last status packet had an error bit set (see servoN_error)"),
+    ("servo_config", "the registers written at enable could not be read back (latched; power cut)"),
+    ("imu", "the IMU did not answer, or is not an MPU-6050 (stabilisation holds the last attitude)"),
+    ("link_lost", "the link fell silent while engaged, so the arm parked (latched until engage)"),
+    ("out_of_reach", "at the current tilt no valid solution reaches the set position; joints held"),
+    ("command_refused", "the last command was refused: engage while disabled, or a non-finite target"),
+)
+
 
 def wire_types(messages=MESSAGES) -> set[str]:
     """The field types in use, with those their C byte helpers are built from."""
@@ -69,6 +80,8 @@ def wire_types(messages=MESSAGES) -> set[str]:
 
 
 def check(messages=MESSAGES) -> None:
+    if len(FAULTS) > 16:
+        raise ValueError("heartbeat.faults is 16 bits wide")
     ids = [m.id for m in messages]
     if len(set(ids)) != len(ids):
         raise ValueError(f"message ids must differ: {ids}")

@@ -22,6 +22,14 @@ def units_to_joint(m: Model, joint: int, units) -> sp.Expr:
     return s.direction * (units - s.zero) / units_per_rad(m)
 
 
+RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX12_FACTS.md)
+
+
+def speed_units(rpm: float) -> int:
+    """Moving Speed register value of a speed in rpm: 1..1023 (0 would mean "no limit")."""
+    return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
+
+
 def unit_range(m: Model, joint: int) -> tuple[int, int]:
     """The servo positions that lie inside the joint's travel limits (whole units)."""
     lim = m.limits[joint]

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import struct
 
-from .model.messages import MESSAGES, Message
+from .model.messages import FAULTS, MESSAGES, Message
 
 BY_NAME = {m.name: m for m in MESSAGES}
 BY_ID = {m.id: m for m in MESSAGES}
@@ -37,3 +37,8 @@ def decode(payload: bytes) -> tuple[str, dict]:
         raise MessageError(f"{msg.name}: {len(payload)} bytes, expected {msg.size}")
     values = struct.unpack(msg.struct_format, payload)[1:]
     return msg.name, dict(zip((f for f, _ in msg.fields), values))
+
+
+def fault_names(bits: int) -> list[str]:
+    """The names of the heartbeat fault bits set in `bits`, lowest first."""
+    return [name for i, (name, _) in enumerate(FAULTS) if bits >> i & 1]

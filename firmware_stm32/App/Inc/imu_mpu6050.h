@@ -1,0 +1,47 @@
+/* MPU-6000/6050 over the port's I2C functions: set-up from the model file and the 14-byte
+ * sample burst (register map: InvenSense RM-MPU-6000A rev 4.2). */
+#ifndef IMU_MPU6050_H
+#define IMU_MPU6050_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "port.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* cffi:begin */
+#define MPU_REG_SMPLRT_DIV 25
+#define MPU_REG_CONFIG 26
+#define MPU_REG_GYRO_CONFIG 27
+#define MPU_REG_ACCEL_CONFIG 28
+#define MPU_REG_INT_ENABLE 56
+#define MPU_REG_ACCEL_XOUT_H 59     /* accel x, y, z, temperature, gyro x, y, z: big-endian int16 */
+#define MPU_REG_PWR_MGMT_1 107
+#define MPU_REG_WHO_AM_I 117
+#define MPU_WHO_AM_I 104            /* 0x68 whatever the AD0 pin says */
+#define MPU_SAMPLE_BYTES 14
+
+typedef struct {
+    int16_t accel[3];
+    int16_t temperature;
+    int16_t gyro[3];
+} mpu_raw_t;
+
+/* Checks WHO_AM_I, wakes the chip on the gyro-X PLL clock, and writes sample rate divider,
+ * digital low-pass, ranges and the data-ready interrupt from the model file, then reads
+ * them back. False if the chip did not answer or a setting did not stick. */
+bool mpu_init(const port_t *port, uint8_t address);
+/* One 14-byte burst from ACCEL_XOUT_H; false on a bus error. */
+bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw);
+/* Raw counts to g and rad/s (ranges from the model file), still in the IMU's axes. */
+void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3]);
+/* cffi:end */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* IMU_MPU6050_H */

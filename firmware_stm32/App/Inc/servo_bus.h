@@ -1,0 +1,124 @@
+/* The AX-12A servo bus: power-up, configuration and the per-tick traffic, as a
+ * non-blocking state machine over the port's half-duplex UART.
+ *
+ *   OFF --power on--> BOOTING --boot time--> CONFIGURING --verified--> RUNNING
+ *                                                 '--3 failed attempts--> FAILED
+ *
+ * CONFIGURING writes, to each servo: Status Return Level 1 (answer reads only), Return
+ * Delay Time, CW/CCW Angle Limits (the joint limits in servo units, so the servo itself
+ * also refuses a goal outside them), Torque Limit 1023 (undoes an overload shutdown) and
+ * Torque Enable 1; then reads them back. Writes are sent whether or not the servo still
+ * answers them (a servo fresh from the factory has level 2), so the driver waits for an
+ * optional status packet after each one and only the read-back decides.
+ *
+ * RUNNING, for every sbus_command(): one broadcast SYNC_WRITE of goal position and moving
+ * speed to all servos (no reply), then one READ of present position, speed, load, voltage
+ * and temperature from one servo, round robin, so a tick's bus time stays bounded
+ * (sbus_tick_bus_time_us()). A read that times out or arrives corrupted is retried at the
+ * next command, up to SBUS_READ_RETRIES times, then the servo is marked failed for
+ * this round and the next servo is read.
+ *
+ * Received bytes are matched to the request by servo id and parameter count, so the
+ * master's own echo (a single-wire UART hears itself) and stray packets are ignored.
+ */
+#ifndef SERVO_BUS_H
+#define SERVO_BUS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#include "dxl_protocol.h"
+#include "port.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* cffi:begin */
+#define SBUS_SERVOS 3
+#define SBUS_READ_RETRIES 1
+#define SBUS_CONFIG_ATTEMPTS 3
+#define SBUS_STATUS_ADDR 36        /* present position .. present temperature */
+#define SBUS_STATUS_LEN 8
+#define SBUS_VERIFY_ADDR 5         /* return delay .. torque limit */
+#define SBUS_VERIFY_LEN 31
+#define SBUS_TX_MAX 32
+#define SBUS_RX_MAX 48
+
+typedef enum {
+    SBUS_OFF = 0,
+    SBUS_BOOTING = 1,
+    SBUS_CONFIGURING = 2,
+    SBUS_RUNNING = 3,
+    SBUS_FAILED = 4
+} sbus_state_t;
+
+/* What the driver knows of one servo; counters wrap. */
+typedef struct {
+    uint8_t id;
+    uint8_t last_error;            /* error byte of its latest status packet */
+    bool failed;                   /* its latest read went unanswered after the retries */
+    bool status_valid;             /* present_* hold a reading since power-on */
+    uint16_t present_position;     /* units */
+    uint16_t present_speed;        /* bit 10 = direction */
+    uint16_t present_load;         /* bit 10 = direction */
+    uint8_t present_voltage;       /* 0.1 V */
+    uint8_t present_temperature;   /* deg C */
+    uint16_t timeouts;             /* requests that got no valid answer in time */
+    uint16_t retries;              /* requests repeated after a timeout */
+    uint16_t bad_packets;          /* status packets with a bad checksum */
+    uint16_t error_packets;        /* status packets with any error bit set */
+    uint16_t error_bits[7];        /* ... per bit: voltage, angle limit, overheating, range,
+                                      checksum, overload, instruction */
+} sbus_servo_t;
+
+typedef struct {
+    const port_t *port;
+    uint32_t byte_us;              /* bus time of one byte, rounded up */
+    sbus_state_t state;
+    uint32_t since_us;             /* when the current state began */
+    sbus_servo_t servo[SBUS_SERVOS];
+    /* the transaction on the wire */
+    uint8_t phase;                 /* idle, sending, awaiting a reply */
+    uint8_t reply;                 /* none, optional, required */
+    uint8_t expect_id;
+    uint8_t expect_params;
+    uint32_t phase_us;
+    uint32_t timeout_us;
+    uint8_t tx[SBUS_TX_MAX];
+    uint8_t tx_len;
+    uint8_t rx_buf[SBUS_RX_MAX];
+    dxl_parser_t parser;
+    /* configuration */
+    uint8_t cfg_servo;
+    uint8_t cfg_step;
+    uint8_t cfg_attempt;
+    /* running */
+    bool command_pending;
+    bool read_due;
+    uint16_t goal[SBUS_SERVOS];
+    uint16_t speed[SBUS_SERVOS];
+    uint8_t read_index;
+    uint8_t read_attempt;
+    uint32_t sync_writes;
+    uint32_t stray_packets;
+} sbus_t;
+
+/* ids: the servo ids, one per joint; baud: bus speed in bit/s. */
+void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], uint32_t baud);
+/* Switch the servo supply; on restarts the boot and configuration, off stops all traffic. */
+void sbus_power(sbus_t *bus, bool on);
+/* Queue the next SYNC_WRITE (goal position and moving speed per servo, in units); ignored
+ * unless RUNNING. A command not yet sent is replaced. */
+void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS]);
+/* Advance the state machine; call often (every main-loop pass). */
+void sbus_poll(sbus_t *bus);
+/* Worst-case bus time of one command: the SYNC_WRITE plus one status read that times out. */
+uint32_t sbus_tick_bus_time_us(const sbus_t *bus);
+/* cffi:end */
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* SERVO_BUS_H */

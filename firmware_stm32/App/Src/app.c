@@ -1,0 +1,260 @@
+/* The firmware application; see app.h. */
+#include "app.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "imu_mpu6050.h"
+#include "messages.h"
+#include "model_params.h"
+#include "servo_map.h"
+
+static const float PARK[3] = { MODEL_PARK_Q1, MODEL_PARK_Q2, MODEL_PARK_Q3 };
+
+static uint32_t now_us(const app_t *app)
+{
+    return app->port->time_us(app->port->ctx);
+}
+
+static void park_joints(app_t *app)
+{
+    memcpy(app->q_cmd, PARK, sizeof app->q_cmd);
+}
+
+static void try_imu(app_t *app)
+{
+    app->imu_ok = mpu_init(app->port, MODEL_MPU_ADDRESS);
+    app->imu_retry_us = now_us(app);
+    stab_reset(&app->stab);
+}
+
+void app_init(app_t *app, const port_t *port)
+{
+    static const uint8_t ids[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
+    memset(app, 0, sizeof *app);
+    app->port = port;
+    llcp_rx_init(&app->link, MODEL_LINK_FRAME_GAP_MS, msg_expected_len);
+    sbus_init(&app->bus, port, ids, MODEL_SERVO_BAUD);
+    sbus_power(&app->bus, false);
+    park_joints(app);
+    kin_fk_ee(PARK, app->set_position);   /* engage without a set position holds the park point */
+    app->last_frame_us = app->last_heartbeat_us = now_us(app);
+    try_imu(app);
+}
+
+void app_request_tick(app_t *app)
+{
+    app->ticks_requested++;
+}
+
+/* ------------------------------------------------------------------ commands */
+
+static void set_enabled(app_t *app, bool on)
+{
+    if (on == app->enabled) return;
+    app->enabled = on;
+    app->engaged = false;
+    if (on) {
+        app->servo_config_failed = false;
+        park_joints(app);
+    }
+    sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
+}
+
+static void on_set_position(app_t *app, const msg_set_position_t *m)
+{
+    const float p[3] = { m->x, m->y, m->z };
+    float q[3];
+    if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]))) {
+        app->refused = true;
+        return;
+    }
+    app->refused = false;
+    app->unreachable = stab_solve_level(p, app->q_cmd, q) != KIN_OK;
+    if (!app->unreachable) memcpy(app->set_position, p, sizeof p);
+}
+
+static void on_frame(app_t *app, const uint8_t *payload, size_t len)
+{
+    msg_enable_t enable;
+    msg_engage_t engage;
+    msg_set_position_t set;
+    app->last_frame_us = now_us(app);
+    if (msg_enable_unpack(payload, len, &enable)) {
+        app->refused = false;
+        set_enabled(app, enable.on != 0);
+    } else if (msg_engage_unpack(payload, len, &engage)) {
+        app->refused = engage.on && !app->enabled;
+        if (app->refused) return;
+        app->engaged = engage.on != 0;
+        if (app->engaged) app->link_lost = false;
+    } else if (msg_set_position_unpack(payload, len, &set)) {
+        on_set_position(app, &set);
+    } else {
+        app->commands_ignored++;
+    }
+}
+
+static void read_link(app_t *app)
+{
+    uint8_t chunk[64];
+    size_t n;
+    while ((n = app->port->link_read(app->port->ctx, chunk, sizeof chunk)) > 0) {
+        for (size_t i = 0; i < n; ++i) {
+            if (llcp_rx_byte(&app->link, (char)chunk[i], now_us(app) / 1000u) == LLCP_RX_FRAME) {
+                on_frame(app, app->link.payload, app->link.len);
+            }
+        }
+    }
+    (void)llcp_rx_poll(&app->link, now_us(app) / 1000u);
+}
+
+/* ------------------------------------------------------------------ tick */
+
+static void sample_imu(app_t *app)
+{
+    mpu_raw_t raw;
+    float accel[3], gyro[3];
+    if (!app->imu_ok) {
+        if (now_us(app) - app->imu_retry_us >= APP_IMU_RETRY_MS * 1000u) try_imu(app);
+        return;
+    }
+    if (!mpu_read(app->port, MODEL_MPU_ADDRESS, &raw)) {
+        app->imu_errors++;
+        app->imu_ok = false;   /* the attitude holds until the chip is back */
+        app->imu_retry_us = now_us(app);
+        return;
+    }
+    mpu_scale(&raw, accel, gyro);
+    stab_sample(&app->stab, accel, gyro);
+}
+
+/* The joints to command this tick and their speed. */
+static uint16_t choose_joints(app_t *app, float q[3])
+{
+    memcpy(q, app->q_cmd, sizeof app->q_cmd);
+    app->out_of_reach = false;
+    if (!app->engaged) {
+        memcpy(q, PARK, sizeof PARK);
+        return MODEL_PARK_SPEED;
+    }
+    if (stab_solve(&app->stab, app->set_position, app->q_cmd, q) != KIN_OK) {
+        memcpy(q, app->q_cmd, sizeof app->q_cmd);   /* hold */
+        app->out_of_reach = true;
+    }
+    return MODEL_WORKING_SPEED;
+}
+
+static void tick(app_t *app)
+{
+    float q[3];
+    uint16_t units[SBUS_SERVOS];
+    sample_imu(app);
+    if (!app->enabled) return;
+    const uint16_t speed = choose_joints(app, q);
+    /* Last line of defence: nothing reaches a servo unless the generated checks pass. */
+    if (kin_check_joints(q) != KIN_OK || !servo_joints_to_units(q, units)) return;
+    memcpy(app->q_cmd, q, sizeof q);
+    const uint16_t speeds[SBUS_SERVOS] = { speed, speed, speed };
+    sbus_command(&app->bus, units, speeds);
+}
+
+/* ------------------------------------------------------------------ heartbeat */
+
+uint16_t app_faults(const app_t *app)
+{
+    uint16_t f = 0;
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        if (app->bus.servo[i].failed) f |= MSG_FAULT_SERVO_TIMEOUT;
+        if (app->bus.servo[i].last_error) f |= MSG_FAULT_SERVO_ERROR;
+    }
+    if (app->servo_config_failed) f |= MSG_FAULT_SERVO_CONFIG;
+    if (!app->imu_ok) f |= MSG_FAULT_IMU;
+    if (app->link_lost) f |= MSG_FAULT_LINK_LOST;
+    if (app->out_of_reach) f |= MSG_FAULT_OUT_OF_REACH;
+    if (app->refused) f |= MSG_FAULT_COMMAND_REFUSED;
+    return f;
+}
+
+/* Measured joint angles where the latest status read succeeded, else the command. */
+static void current_joints(const app_t *app, float q[3])
+{
+    uint16_t units[SBUS_SERVOS];
+    float measured[3];
+    for (int i = 0; i < SBUS_SERVOS; ++i) units[i] = app->bus.servo[i].present_position;
+    servo_units_to_joints(units, measured);
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        const sbus_servo_t *s = &app->bus.servo[i];
+        q[i] = app->enabled && s->status_valid && !s->failed ? measured[i] : app->q_cmd[i];
+    }
+}
+
+static void send_heartbeat(app_t *app)
+{
+    const llcp_rx_t *rx = &app->link;
+    msg_heartbeat_t hb;
+    float q[3];
+    uint8_t payload[MSG_HEARTBEAT_SIZE];
+    char frame[LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE)];
+    uint32_t timeouts = 0;
+    for (int i = 0; i < SBUS_SERVOS; ++i) timeouts += app->bus.servo[i].timeouts;
+    current_joints(app, q);
+    hb.enabled = app->enabled;
+    hb.engaged = app->engaged;
+    hb.unreachable = app->unreachable;
+    hb.faults = app_faults(app);
+    hb.servo1_error = app->bus.servo[0].last_error;
+    hb.servo2_error = app->bus.servo[1].last_error;
+    hb.servo3_error = app->bus.servo[2].last_error;
+    hb.set_x = app->set_position[0];
+    hb.set_y = app->set_position[1];
+    hb.set_z = app->set_position[2];
+    hb.q1 = q[0];
+    hb.q2 = q[1];
+    hb.q3 = q[2];
+    /* counters wrap at 16 bits on the wire */
+    hb.link_frames_ok = (uint16_t)rx->frames_ok;
+    hb.link_errors = (uint16_t)(rx->checksum_errors + rx->hex_errors + rx->length_errors
+                                + rx->unknown_ids + rx->timeouts + rx->restarts);
+    hb.servo_timeouts = (uint16_t)timeouts;
+    size_t len = msg_heartbeat_pack(&hb, payload, sizeof payload);
+    size_t n = llcp_encode_tx(payload, len, frame, sizeof frame);
+    if (n > 0 && app->port->link_write(app->port->ctx, (const uint8_t *)frame, n)) {
+        app->heartbeats_sent++;
+    } else {
+        app->heartbeats_dropped++;
+    }
+}
+
+/* ------------------------------------------------------------------ main loop */
+
+void app_poll(app_t *app)
+{
+    read_link(app);
+
+    uint32_t requested = app->ticks_requested;
+    if (requested != app->ticks_run) {
+        app->ticks_missed += requested - app->ticks_run - 1u;
+        app->ticks_run = requested;
+        tick(app);
+    }
+
+    sbus_poll(&app->bus);
+    if (app->bus.state == SBUS_FAILED) {
+        set_enabled(app, false);        /* a servo that cannot be configured: power off */
+        app->servo_config_failed = true;
+    }
+
+    const uint32_t now = now_us(app);
+    if (app->engaged && now - app->last_frame_us > MODEL_LINK_SILENCE_MS * 1000u) {
+        app->engaged = false;
+        app->link_lost = true;
+    }
+    if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) {
+        app->last_heartbeat_us += MODEL_HEARTBEAT_MS * 1000u;
+        if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) app->last_heartbeat_us = now;
+        send_heartbeat(app);
+    }
+    app->port->led(app->port->ctx, 0, app->enabled);
+    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
+}

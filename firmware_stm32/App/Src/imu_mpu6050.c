@@ -1,0 +1,63 @@
+/* MPU-6000/6050 set-up and sampling; see imu_mpu6050.h. */
+#include "imu_mpu6050.h"
+
+#include "model_params.h"
+
+#define PWR_CLOCK_PLL_GYRO_X 1u     /* SLEEP cleared, CLKSEL = 1 */
+#define INT_DATA_READY 1u
+
+static const uint8_t SETTINGS[][2] = {
+    { MPU_REG_SMPLRT_DIV, MODEL_MPU_SMPLRT_DIV },
+    { MPU_REG_CONFIG, MODEL_MPU_DLPF_CFG },
+    { MPU_REG_GYRO_CONFIG, MODEL_MPU_GYRO_FS_SEL << 3 },
+    { MPU_REG_ACCEL_CONFIG, MODEL_MPU_ACCEL_FS_SEL << 3 },
+    { MPU_REG_INT_ENABLE, INT_DATA_READY },
+};
+#define N_SETTINGS (sizeof SETTINGS / sizeof SETTINGS[0])
+
+bool mpu_init(const port_t *port, uint8_t address)
+{
+    uint8_t who = 0;
+    if (!port->imu_read(port->ctx, address, MPU_REG_WHO_AM_I, &who, 1) || who != MPU_WHO_AM_I) {
+        return false;
+    }
+    if (!port->imu_write(port->ctx, address, MPU_REG_PWR_MGMT_1, PWR_CLOCK_PLL_GYRO_X)) {
+        return false;
+    }
+    for (unsigned i = 0; i < N_SETTINGS; ++i) {
+        uint8_t back = 0;
+        if (!port->imu_write(port->ctx, address, SETTINGS[i][0], SETTINGS[i][1])
+            || !port->imu_read(port->ctx, address, SETTINGS[i][0], &back, 1)
+            || back != SETTINGS[i][1]) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static int16_t be16(const uint8_t *b)
+{
+    return (int16_t)(uint16_t)((uint16_t)b[0] << 8 | b[1]);
+}
+
+bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw)
+{
+    uint8_t b[MPU_SAMPLE_BYTES];
+    if (!port->imu_read(port->ctx, address, MPU_REG_ACCEL_XOUT_H, b, sizeof b)) {
+        return false;
+    }
+    for (int i = 0; i < 3; ++i) {
+        raw->accel[i] = be16(b + 2 * i);
+        raw->gyro[i] = be16(b + 8 + 2 * i);
+    }
+    raw->temperature = be16(b + 6);
+    return true;
+}
+
+void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3])
+{
+    for (int i = 0; i < 3; ++i) {
+        accel_g[i] = (float)raw->accel[i] * MODEL_ACCEL_G_PER_LSB;
+        gyro_rad_s[i] = (float)raw->gyro[i] * MODEL_GYRO_RAD_PER_LSB;
+    }
+}

@@ -1,0 +1,191 @@
+"""A simulated board: the firmware application (host build) wired to simulated AX-12A
+servos, an MPU-6050 register file and the drone's link, in deterministic simulated time.
+
+The application is reached only through what the hardware has: link bytes, servo-bus bytes
+and the supply switch (to and from uavarm.ax12_sim), IMU registers (uavarm.mpu6050_sim),
+the tick interrupt and the clock. Everything the board says comes back as link bytes.
+
+    board = SimBoard()
+    board.send("enable", on=1)
+    board.run(1.0)                      # seconds of simulated time
+    board.heartbeats[-1]                # decoded heartbeat fields
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from . import ax12_sim, firmware, llcp, messages
+from .model import config, servo as servo_map
+from .mpu6050_sim import Mpu6050
+
+US = 1_000_000
+
+
+@dataclass
+class SyncCommand:
+    """One SYNC_WRITE of goal position and moving speed, as it left the board."""
+    time: float
+    goal: dict[int, int]       # servo id -> units
+    speed: dict[int, int]
+
+
+def baud_register(baud: float) -> int:
+    """The AX-12A Baud Rate register value for a bus speed: bps = 2e6 / (value + 1)."""
+    return round(2_000_000 / baud) - 1
+
+
+def parse_instructions(data: bytes) -> list[tuple[int, int, bytes]]:
+    """(id, instruction, params) of every well-formed instruction packet in data."""
+    out, i = [], 0
+    while i + 6 <= len(data):
+        if data[i] != 0xFF or data[i + 1] != 0xFF:
+            i += 1
+            continue
+        n = data[i + 3] + 4
+        pkt = data[i:i + n]
+        if len(pkt) == n and ax12_sim.checksum(pkt[2:-1]) == pkt[-1]:
+            out.append((pkt[2], pkt[4], bytes(pkt[5:-1])))
+            i += n
+        else:
+            i += 1
+    return out
+
+
+@dataclass
+class Gravity:
+    """A static board: the IMU sees 1 g "up" tilted by roll/pitch (rad), no rotation."""
+    roll: float = 0.0
+    pitch: float = 0.0
+
+    def imu(self, t: float):
+        up = (-math.sin(self.pitch), math.sin(self.roll) * math.cos(self.pitch),
+              math.cos(self.roll) * math.cos(self.pitch))
+        return up, (0.0, 0.0, 0.0)
+
+
+class SimBoard:
+    """model: the model the firmware was generated from; servos: AX12 objects (default: one
+    per joint, at the bus's baud, resting at their centre); motion: an object whose
+    imu(t) gives (accel_g, gyro_rad_s) in the IMU axes (default: level and still);
+    start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
+    poll_us: main-loop period."""
+
+    def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
+                 poll_us: int = 100, lib=None, bus_echo: bool = False):
+        self.model = model or config.load()
+        self.ffi, self.lib = lib or firmware.default()
+        m = self.model
+        self.hp = self.ffi.new("host_port_t *")
+        self.lib.host_port_init(self.hp, m.servo_baud, m.imu_address)
+        self.imu = Mpu6050(memoryview(self.ffi.buffer(self.hp.imu_regs)))
+        if servos is None:
+            servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}) for s in m.servos]
+        self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo)
+        self.bus.power(False)
+        self.motion = motion or Gravity()
+        self.start_us = start_us
+        self.poll_us = poll_us
+        self.tick_us = round(US / m.sample_rate)
+        self.now_us = 0                       # simulated time since start
+        self._next_tick = self.tick_us
+        self._power = False
+        self._link = llcp.Decoder(expected_len=lambda i: messages.BY_ID[i].size if i in messages.BY_ID else -1)
+        self.heartbeats: list[dict] = []
+        self.heartbeat_times: list[float] = []
+        self.servo_tx = bytearray()           # every byte the board put on the servo bus
+        self.commands: list[SyncCommand] = []
+        self.power_log: list[tuple[float, bool]] = []
+        self.app = self.ffi.new("app_t *")
+        self._clock()
+        self.lib.app_init(self.app, self.ffi.addressof(self.hp, "port"))
+
+    # ------------------------------------------------------------------ inputs
+
+    @property
+    def time(self) -> float:
+        return self.now_us / US
+
+    def send(self, name: str, **fields) -> None:
+        self.send_bytes(llcp.encode(messages.encode(name, **fields)))
+
+    def send_bytes(self, data: bytes) -> None:
+        pushed = self.lib.host_port_link_push(self.hp, bytes(data), len(data))
+        if pushed != len(data):
+            raise OverflowError(f"link input full: {pushed} of {len(data)} bytes taken")
+
+    # ------------------------------------------------------------------ time
+
+    def run(self, seconds: float) -> None:
+        self.run_until_us(self.now_us + round(seconds * US))
+
+    def run_until_us(self, end_us: int) -> None:
+        while self.now_us < end_us:
+            self.step(min(self.poll_us, end_us - self.now_us))
+
+    def step(self, dt_us: int) -> None:
+        """Advance dt_us, then run one pass of the firmware's main loop."""
+        self.now_us += dt_us
+        self.bus.run_until(self.time)
+        rx = self.bus.read()
+        if rx:
+            self.lib.host_port_servo_push(self.hp, rx, len(rx))
+        if self.now_us >= self._next_tick:
+            self._next_tick += self.tick_us
+            accel, gyro = self.motion.imu(self.time)
+            self.imu.sample(accel, gyro)
+            self.lib.app_request_tick(self.app)
+        self._clock()
+        self.lib.app_poll(self.app)
+        self._collect()
+
+    def _clock(self) -> None:
+        self.hp.now_us = (self.start_us + self.now_us) & 0xFFFFFFFF
+
+    def _collect(self) -> None:
+        if self.hp.servo_power != self._power:
+            self._power = bool(self.hp.servo_power)
+            self.bus.power(self._power)
+            self.power_log.append((self.time, self._power))
+        buf = self.ffi.new("uint8_t[]", 512)
+        n = self.lib.host_port_servo_take(self.hp, buf, 512)
+        if n:
+            data = bytes(self.ffi.buffer(buf, n))
+            self.servo_tx += data
+            self.bus.write(data)
+            for id_, inst, params in parse_instructions(data):
+                if inst == ax12_sim.INST_SYNC_WRITE:
+                    self.commands.append(self._sync_command(params))
+        n = self.lib.host_port_link_take(self.hp, buf, 512)
+        if n:
+            for payload in self._link.feed(bytes(self.ffi.buffer(buf, n)), self.time):
+                name, fields = messages.decode(payload)
+                if name == "heartbeat":
+                    self.heartbeats.append(fields)
+                    self.heartbeat_times.append(self.time)
+
+    def _sync_command(self, params: bytes) -> SyncCommand:
+        addr, size = params[0], params[1]
+        goal, speed = {}, {}
+        if addr == 30 and size == 4:
+            for k in range(2, len(params) - 4, 5):
+                id_ = params[k]
+                goal[id_] = int.from_bytes(params[k + 1:k + 3], "little")
+                speed[id_] = int.from_bytes(params[k + 3:k + 5], "little")
+        return SyncCommand(self.time, goal, speed)
+
+    # ------------------------------------------------------------------ views
+
+    @property
+    def servo_power(self) -> bool:
+        return self._power
+
+    def joint_angles(self, command: SyncCommand) -> list[float]:
+        """The joint angles (rad) a SYNC_WRITE commands, through the model's servo map."""
+        return [float(servo_map.units_to_joint(self.model, j, command.goal[s.id]))
+                for j, s in enumerate(self.model.servos)]
+
+    def servo_joints(self) -> list[float]:
+        """The simulated shafts' joint angles (rad)."""
+        return [float(servo_map.units_to_joint(self.model, j, self.bus.servo(s.id).position))
+                for j, s in enumerate(self.model.servos)]
