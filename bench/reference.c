@@ -144,3 +144,80 @@ float ref_biquad_step(float hist[4], float x)
     hist[2] = y;
     return y;
 }
+
+/* The stabiliser tick written plainly from the thesis (errata applied): raw counts scaled,
+ * six DF1 biquads, the complementary filter with libm, the target turned into the base
+ * frame, ref_ik, and servo units. State between ticks in a static struct. */
+static float ref_gb[3] = REF_GYRO_B;
+static float ref_ga[3] = REF_GYRO_A;
+static const float mount[3][3] = REF_MOUNT;
+static const float units_zero[3] = REF_SERVO_ZERO, units_dir[3] = REF_SERVO_DIR;
+
+static float biquad(const float b[3], const float a[3], float h[4], float x)
+{
+    const float y = (b[0] * x + b[1] * h[0] + b[2] * h[1] - a[1] * h[2] - a[2] * h[3]) / a[0];
+    h[1] = h[0];
+    h[0] = x;
+    h[3] = h[2];
+    h[2] = y;
+    return y;
+}
+
+static struct {
+    int started;
+    float acc_h[3][4], gyro_h[3][4];
+    float roll, pitch;
+    float q[3];
+} tick_state;
+
+static int ref_tick(const int32_t raw[6], const float target[3], uint32_t units[3])
+{
+    float acc_imu[3], gyro_imu[3], acc[3], gyro[3], p[3];
+    for (int i = 0; i < 3; ++i) {
+        acc_imu[i] = biquad(ref_b, ref_a, tick_state.acc_h[i], (float)raw[i] * REF_ACCEL_SCALE);
+        gyro_imu[i] = biquad(ref_gb, ref_ga, tick_state.gyro_h[i], (float)raw[3 + i] * REF_GYRO_SCALE);
+    }
+    for (int i = 0; i < 3; ++i) {
+        acc[i] = mount[i][0] * acc_imu[0] + mount[i][1] * acc_imu[1] + mount[i][2] * acc_imu[2];
+        gyro[i] = mount[i][0] * gyro_imu[0] + mount[i][1] * gyro_imu[1] + mount[i][2] * gyro_imu[2];
+    }
+    const float acc_roll = atan2f(acc[1], acc[2]);
+    const float acc_pitch = atan2f(-acc[0], sqrtf(acc[1] * acc[1] + acc[2] * acc[2]));
+    if (!tick_state.started) {
+        tick_state.roll = acc_roll;
+        tick_state.pitch = acc_pitch;
+        tick_state.started = 1;
+    }
+    const float sr = sinf(tick_state.roll), cr = cosf(tick_state.roll);
+    const float sp = sinf(tick_state.pitch), cp = cosf(tick_state.pitch);
+    const float roll_rate = gyro[0] + (gyro[1] * sr + gyro[2] * cr) * sp / fmaxf(cp, 0.01f);
+    const float pitch_rate = gyro[1] * cr - gyro[2] * sr;
+    tick_state.roll = REF_W * (tick_state.roll + roll_rate * REF_DT) + (1.0f - REF_W) * acc_roll;
+    tick_state.pitch = REF_W * (tick_state.pitch + pitch_rate * REF_DT) + (1.0f - REF_W) * acc_pitch;
+    /* p_base = (Ry(pitch) Rx(roll))^T target */
+    const float r2 = tick_state.roll, p2 = tick_state.pitch;
+    const float Rx[3][3] = { { 1, 0, 0 }, { 0, cosf(r2), -sinf(r2) }, { 0, sinf(r2), cosf(r2) } };
+    const float Ry[3][3] = { { cosf(p2), 0, sinf(p2) }, { 0, 1, 0 }, { -sinf(p2), 0, cosf(p2) } };
+    float R[3][3];
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            R[i][j] = 0.0f;
+            for (int k = 0; k < 3; ++k) R[i][j] += Ry[i][k] * Rx[k][j];
+        }
+    for (int i = 0; i < 3; ++i) p[i] = R[0][i] * target[0] + R[1][i] * target[1] + R[2][i] * target[2];
+    float q[3];
+    if (ref_ik(p, tick_state.q, q) < 0) return 0;
+    for (int i = 0; i < 3; ++i) {
+        tick_state.q[i] = q[i];
+        units[i] = (uint32_t)lroundf(units_zero[i] + units_dir[i] * q[i] * REF_UNITS_PER_RAD);
+    }
+    return 1;
+}
+
+/* n ticks over raw (n x 6 counts); bench/run.py divides the count by n. */
+int ref_run(const int32_t *raw, uint32_t n, const float target[3], uint32_t units[3])
+{
+    int ok = 1;
+    for (uint32_t k = 0; k < n; ++k) ok &= ref_tick(raw + 6 * k, target, units);
+    return ok;
+}

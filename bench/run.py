@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from uavarm import generated, target
+from uavarm import cbuild, firmware, generated, target
+from uavarm.board import SimBoard
 from uavarm.model import config
 
 BENCH = Path(__file__).resolve().parent
@@ -81,7 +82,97 @@ def main() -> int:
         print(f"| {name} | {g['insns']:.0f} | {g['cycles']:.0f} ({g['cycles_max']}) | {g['bytes']} | "
               f"{r['insns']:.0f} | {r['cycles']:.0f} ({r['cycles_max']}) | {r['bytes']} | "
               f"{r['cycles'] / g['cycles']:.1f}x |")
+    whole_tick(m)
+    target_size()
+    bus_traffic(m)
     return 0
+
+
+N_TICKS = 20
+
+
+def tilting_imu(m, n=N_TICKS):
+    """Raw MPU-6050 counts of a board rocking +-20 deg in roll at 1 Hz (ideal sensor)."""
+    lsb_g = 32768 / m.accel_range_g
+    lsb_rad = 32768 / np.radians(m.gyro_range_dps)
+    raw = []
+    for k in range(n):
+        t = k / m.sample_rate
+        roll = np.radians(20) * np.sin(2 * np.pi * t)
+        rate = np.radians(20) * 2 * np.pi * np.cos(2 * np.pi * t)
+        raw += [0, round(np.sin(roll) * lsb_g), round(np.cos(roll) * lsb_g), round(rate * lsb_rad), 0, 0]
+    return raw
+
+
+def whole_tick(m):
+    """The firmware's whole tick (bench/tick_bench.c) against the plain reference tick."""
+    m4 = target.m4count()
+    app = firmware.APP
+    sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
+    incs = [f"-I{d}" for d in (generated.GENERATED, app / "Inc")]
+    gen = m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
+    ref = m4.build([str(BENCH / "reference.c")], ["ref_run"], cflags=target.M4_CFLAGS + target.reference_defines(m))
+    raw = tilting_imu(m)
+    idle = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(0)], ret="int")
+    run = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(1)], ret="int")
+    base = ref.call("ref_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.Arr("float", [60.0, 20.0, -120.0]),
+                                m4.Arr("uint32", 3)], ret="int")
+    if not (idle.ret and run.ret and base.ret):
+        raise SystemExit("tick bench: a run did not complete (engaged, all commands sent)")
+    per_tick = lambda r: {k: v / N_TICKS for k, v in r.items()}
+    by_func = per_tick({k: v - idle.cycles_by_function.get(k, 0) for k, v in run.cycles_by_function.items()})
+    arithmetic = sum(v for k, v in by_func.items()
+                     if k.startswith(("kin_", "est_", "filt_", "stab_", "fm_", "servo_joints_to_units", "mpu_scale")))
+    tick = (run.cycles - idle.cycles) / N_TICKS
+    tick_insns = (run.insns - idle.insns) / N_TICKS
+    ref_tick = base.cycles / N_TICKS
+    print(f"\nWhole 100 Hz tick, mean over {N_TICKS} ticks of a board rocking +-20 deg. Firmware "
+          "(bench/tick_bench.c): what a tick adds to the main loop's idle passes: the IMU burst, "
+          "filters, attitude, level-to-base, IK + select, safety check, servo units, the SYNC_WRITE, "
+          "the status READ and the parse of its 14-byte reply. Reference (bench/reference.c "
+          "ref_tick): the same arithmetic written plainly with libm, no I/O.\n")
+    print("| | insns | est. cycles | us at 96 MHz | stack bytes |")
+    print("|---|---:|---:|---:|---:|")
+    print(f"| firmware: whole tick with bus I/O | {tick_insns:.0f} | {tick:.0f} | {tick / 96:.1f} | {run.stack_bytes} |")
+    print(f"| firmware: of which the arithmetic (generated code, stabiliser, scaling) | | {arithmetic:.0f} | "
+          f"{arithmetic / 96:.1f} | |")
+    print(f"| plain reference tick: the arithmetic only, no I/O | {base.insns / N_TICKS:.0f} | {ref_tick:.0f} | "
+          f"{ref_tick / 96:.1f} | {base.stack_bytes} |")
+    print(f"| ratio reference / firmware arithmetic | | {ref_tick / arithmetic:.1f}x | | |")
+    print("\nLargest shares of the firmware tick (est. cycles, exclusive):",
+          ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:8]))
+
+
+def target_size():
+    """Flash and static RAM of the portable application and generated code on the M4."""
+    ffi, _ = firmware.default()
+    sizes = target.cross_compile(firmware.app_sources(), [generated.GENERATED, firmware.APP / "Inc"],
+                                 cbuild.ROOT / "build" / "m4")
+    text = sum(s[0] for s in sizes.values())
+    data = sum(s[1] for s in sizes.values())
+    bss = sum(s[2] for s in sizes.values())
+    print(f"\nCortex-M4F objects ({len(sizes)} files, -O2, -Werror): flash {text + data} bytes "
+          f"(text {text}, data {data}), static RAM {data + bss} bytes; the application state "
+          f"app_t is {ffi.sizeof('app_t')} bytes (a static in main.c).")
+
+
+def bus_traffic(m, seconds=1.0):
+    """Servo-bus bytes and wire time per tick, engaged, from the simulated board."""
+    board = SimBoard(m)
+    board.send("enable", on=1)
+    board.run(1.0)
+    board.send("engage", on=1)
+    board.run(0.2)
+    tx0, rx0, t0 = len(board.servo_tx), board.servo_rx_bytes, board.time
+    board.run(seconds)
+    ticks = round((board.time - t0) * m.sample_rate)
+    tx = (len(board.servo_tx) - tx0) / ticks
+    rx = (board.servo_rx_bytes - rx0) / ticks
+    byte_us = 10e6 / m.servo_baud
+    wire = (tx + rx) * byte_us + m.servo_return_delay_us
+    print(f"\nServo bus at {m.servo_baud} baud, engaged: {tx:.0f} bytes out + {rx:.0f} bytes back per tick "
+          f"(SYNC_WRITE of 3 servos + one status READ), {wire:.0f} us of wire time per "
+          f"{1e6 / m.sample_rate:.0f} us tick ({wire * m.sample_rate / 1e4:.0f} % of the bus).")
 
 
 if __name__ == "__main__":

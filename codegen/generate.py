@@ -221,6 +221,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "est": estimator_context(m),
         "params": params_context(m),
         "lit": float32_literal,
+        "pi": sp.pi,
         "messages": messages.MESSAGES,
         "faults": messages.FAULTS,
         "types": messages.TYPES,

@@ -1,8 +1,14 @@
 """The model file loader: bad input gets a clear error naming the file and the key."""
+import dataclasses
+import math
 import re
+import tomllib
 
+import numpy as np
 import pytest
 
+import oracles
+from uavarm.codegen import generate
 from uavarm.model import config
 
 BASE = config.DEFAULT_MODEL.read_text()
@@ -84,3 +90,191 @@ def test_codegen_cli_reports_model_errors(tmp_path, capsys):
     assert main(["--model", str(path), "--out", str(tmp_path / "gen")]) == 2
     assert "geometry.L2" in capsys.readouterr().err
     assert not (tmp_path / "gen").exists()
+
+
+# --- servo, park, link and IMU keys ---------------------------------------------------------
+
+@pytest.mark.parametrize("old, new, key, words", [
+    ("accel_range_g = 4 ", "accel_range_g = 3 ", "imu.accel_range_g", "one of [2, 4, 8, 16]"),
+    ("accel_range_g = 4 ", "accel_range_g = 4.0 ", "imu.accel_range_g", "expected an integer"),
+    ("gyro_range_dps = 500", "gyro_range_dps = 300", "imu.gyro_range_dps", "one of [250, 500, 1000, 2000]"),
+    ("dlpf_bandwidth = 44", "dlpf_bandwidth = 50", "imu.dlpf_bandwidth", "one of"),
+    ("i2c_address = 0x68", "i2c_address = 0x70", "imu.i2c_address", "one of [104, 105]"),
+    ("sample_rate = 100.0", "sample_rate = 300.0", "imu.sample_rate", "1000 Hz / n"),
+    ("sample_rate = 100.0", "sample_rate = 2000.0", "imu.sample_rate", "1000 Hz / n"),
+    ("sample_rate = 100.0", "sample_rate = 3.0", "imu.sample_rate", "1000 Hz / n"),
+    ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 0.0]", "imu.mounting_rpy", "expected 3"),
+    ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 190.0, 0.0]", "imu.mounting_rpy[1]", "within"),
+    ("return_delay_us = 20", "return_delay_us = 21", "servo.return_delay_us", "even"),
+    ("return_delay_us = 20", "return_delay_us = 510", "servo.return_delay_us", "<= 508"),
+    ("return_delay_us = 20", "return_delay_us = -2", "servo.return_delay_us", ">= 0"),
+    ("park_speed_rpm = 10.0", "park_speed_rpm = 0.0", "servo.park_speed_rpm", ">= 0.111"),
+    ("park_speed_rpm = 10.0", "park_speed_rpm = 200.0", "servo.park_speed_rpm", "<= 113.5"),
+    ("working_speed_rpm = 59.0", "working_speed_rpm = 114.0", "servo.working_speed_rpm", "<= 113.5"),
+    ("working_speed_rpm = 59.0", "working_speed_rpm = -5.0", "servo.working_speed_rpm", ">= 0.111"),
+    ("boot_time = 0.1", "boot_time = -0.1", "servo.boot_time", "negative"),
+    ("boot_time = 0.1", "", "servo.boot_time", "missing"),
+    ("q = [0.0, 60.0, -110.0]", "q = [0.0, 60.0]", "park.q", "expected 3 angles"),
+    ("q = [0.0, 60.0, -110.0]", "q = [0.0, 60.0, -110.0, 0.0]", "park.q", "expected 3 angles"),
+    ("q = [0.0, 60.0, -110.0]", 'q = [0.0, "60", -110.0]', "park.q[1]", "finite number"),
+    ("q = [0.0, 60.0, -110.0]", "q = 60.0", "park.q", "expected a list"),
+    ("silence_timeout = 1.0", "silence_timeout = 0.01", "link.silence_timeout", ">= 0.02"),
+    ("heartbeat_period = 0.5", "heartbeat_period = 0.0", "link.heartbeat_period", "positive"),
+    ("frame_gap = 0.05", "frame_gap = 0", "link.frame_gap", "positive"),
+])
+def test_bad_new_keys_name_file_and_key(tmp_path, old, new, key, words):
+    msg = broken(tmp_path, old, new)
+    assert f": {key}: " in msg and words in msg, msg
+
+
+def test_new_keys_load(model):
+    assert model.servo_return_delay_us == 20 and model.servo_boot_time == 0.1
+    assert (model.park_speed_rpm, model.working_speed_rpm) == (10.0, 59.0)
+    assert model.park_deg == (0.0, 60.0, -110.0)
+    assert (model.link_silence_timeout, model.heartbeat_period, model.link_frame_gap) == (1.0, 0.5, 0.05)
+    assert (model.imu_address, model.accel_range_g, model.gyro_range_dps, model.dlpf_bandwidth) == \
+        (0x68, 4, 500, 44)
+    assert model.imu_mounting_rpy_deg == (0.0, 0.0, 0.0)
+
+
+# Park poses and what the plain geometry of oracles.py says about them (verified below).
+BAD_PARKS = [
+    ([0.0, 130.0, 0.0], 2, "outside the joint limits"),     # theta2 max is 120
+    ([0.0, 90.0, 90.0], 3, "not below the body"),           # forearm points up: ee at z = +33.5
+    ([45.0, 90.0, 0.0], 4, "in a landing leg"),             # ee 138.5 mm out, in leg 45's plane
+]
+
+
+@pytest.mark.parametrize("q, status, words", BAD_PARKS)
+def test_codegen_rejects_bad_park_pose(tmp_path, model, q, status, words):
+    assert oracles.check_pose(model, np.radians(q))[0][0] == status     # the pose really is bad
+    path = tmp_path / "arm.toml"
+    path.write_text(BASE.replace("q = [0.0, 60.0, -110.0]", f"q = {q}", 1))
+    config.load(path)                                                   # the file itself is valid
+    with pytest.raises(config.ModelError) as err:
+        generate.render(path)
+    msg = str(err.value)
+    assert str(path) in msg and "park.q" in msg and words in msg, msg
+
+
+def test_good_park_poses_pass(model):
+    """Valid poses other than the default, including one inside a leg's sector but short."""
+    for q in [(0.0, 90.0, 0.0), (-130.0, 20.0, 30.0)]:          # reaching out; near a leg but short
+        assert oracles.check_pose(model, np.radians(q))[0][0] == 0
+        generate.check_park(dataclasses.replace(model, park_deg=q))
+
+
+def test_codegen_cli_reports_bad_park(tmp_path, capsys):
+    path = tmp_path / "arm.toml"
+    path.write_text(BASE.replace("q = [0.0, 60.0, -110.0]", "q = [0.0, 90.0, 90.0]", 1))
+    assert generate.main(["--model", str(path), "--out", str(tmp_path / "gen")]) == 2
+    assert "park.q" in capsys.readouterr().err
+    assert not (tmp_path / "gen").exists()
+
+
+# --- model_params.h against the datasheets ---------------------------------------------------
+# MPU-6000/6050 register map and product specification (rev 3.4 / 4.2): accelerometer
+# sensitivity 16384, 8192, 4096, 2048 LSB/g for AFS_SEL 0..3 (+-2, 4, 8, 16 g); gyro full scale
+# +-250, 500, 1000, 2000 deg/s for FS_SEL 0..3 over the int16 range (131, 65.5, 32.8, 16.4
+# LSB/(deg/s)); sample rate = 1 kHz / (1 + SMPLRT_DIV) with the DLPF on; DLPF_CFG 0..6 gives an
+# accelerometer bandwidth of 260, 184, 94, 44, 21, 10, 5 Hz. AX-12A: Moving Speed unit about
+# 0.111 rpm (1..1023), Return Delay Time in 2 us units, position 0..1023 over 300 deg.
+ACCEL_LSB_PER_G = {2: 16384, 4: 8192, 8: 4096, 16: 2048}
+AFS_SEL = {2: 0, 4: 1, 8: 2, 16: 3}
+GYRO_FS_SEL = {250: 0, 500: 1, 1000: 2, 2000: 3}
+GYRO_LSB_PER_DPS_NOMINAL = {250: 131.0, 500: 65.5, 1000: 32.8, 2000: 16.4}
+DLPF_CFG = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}
+
+PARAMS_VARIANT = {
+    "sample_rate = 100.0": "sample_rate = 200.0",
+    "i2c_address = 0x68": "i2c_address = 0x69",
+    "accel_range_g = 4 ": "accel_range_g = 16 ",
+    "gyro_range_dps = 500": "gyro_range_dps = 2000",
+    "dlpf_bandwidth = 44": "dlpf_bandwidth = 94",
+    "return_delay_us = 20": "return_delay_us = 250",
+    "park_speed_rpm = 10.0": "park_speed_rpm = 3.3",
+    "working_speed_rpm = 59.0": "working_speed_rpm = 113.5",
+    "boot_time = 0.1": "boot_time = 0.25",
+    "q = [0.0, 60.0, -110.0]": "q = [0.0, 90.0, -30.5]",
+    "silence_timeout = 1.0": "silence_timeout = 0.75",
+    "heartbeat_period = 0.5": "heartbeat_period = 0.2",
+    "frame_gap = 0.05": "frame_gap = 0.02",
+    "complementary_gyro_weight = 0.95": "complementary_gyro_weight = 0.98",
+}
+
+
+def _defines(text):
+    out = {}
+    for name, value in re.findall(r"^#define (MODEL_\w+)\s+(\S+)", text, re.M):
+        value = value.rstrip("uf") if not value.startswith("0x") else value.rstrip("u")
+        out[name] = int(value, 0) if re.fullmatch(r"-?(0x[0-9a-fA-F]+|\d+)", value) else float(value)
+    return out
+
+
+def _as_f32(x):
+    """The float32 a C literal (or an exact value) denotes."""
+    return float(np.float32(x))
+
+
+@pytest.fixture(scope="module", params=["committed", "variant"])
+def params(request, tmp_path_factory):
+    if request.param == "committed":
+        path = config.DEFAULT_MODEL
+        text = (config.DEFAULT_MODEL.parents[1] / "generated" / "model_params.h").read_text()
+    else:
+        model_text = BASE
+        for old, new in PARAMS_VARIANT.items():
+            assert old in model_text, old
+            model_text = model_text.replace(old, new, 1)
+        path = tmp_path_factory.mktemp("params") / "arm.toml"
+        path.write_text(model_text)
+        text = generate.render(path)["model_params.h"]
+    return tomllib.loads(path.read_text()), _defines(text)
+
+
+def test_mpu_registers_follow_the_datasheet(params):
+    raw, d = params
+    imu = raw["imu"]
+    assert d["MODEL_MPU_ADDRESS"] == imu["i2c_address"]
+    assert 1000 / (1 + d["MODEL_MPU_SMPLRT_DIV"]) == imu["sample_rate"]
+    assert d["MODEL_MPU_SMPLRT_DIV"] == 1000 / imu["sample_rate"] - 1
+    assert d["MODEL_MPU_DLPF_CFG"] == DLPF_CFG[imu["dlpf_bandwidth"]]
+    assert d["MODEL_MPU_ACCEL_FS_SEL"] == AFS_SEL[imu["accel_range_g"]]
+    assert d["MODEL_MPU_GYRO_FS_SEL"] == GYRO_FS_SEL[imu["gyro_range_dps"]]
+    assert _as_f32(d["MODEL_ACCEL_G_PER_LSB"]) == _as_f32(1 / ACCEL_LSB_PER_G[imu["accel_range_g"]])
+    rad_per_lsb = math.radians(imu["gyro_range_dps"]) / 32768
+    assert _as_f32(d["MODEL_GYRO_RAD_PER_LSB"]) == _as_f32(rad_per_lsb)
+    nominal = math.radians(1 / GYRO_LSB_PER_DPS_NOMINAL[imu["gyro_range_dps"]])
+    assert abs(d["MODEL_GYRO_RAD_PER_LSB"] / nominal - 1) < 2e-3     # the datasheet's rounding
+    assert d["MODEL_SAMPLE_RATE_HZ"] == imu["sample_rate"]
+    assert _as_f32(d["MODEL_SAMPLE_PERIOD_S"]) == _as_f32(1 / imu["sample_rate"])
+    assert d["MODEL_TICK_US"] == 1_000_000 / imu["sample_rate"]
+    assert _as_f32(d["MODEL_COMPLEMENTARY_GYRO_WEIGHT"]) == _as_f32(raw["estimator"]["complementary_gyro_weight"])
+
+
+def test_servo_link_and_park_values(params):
+    raw, d = params
+    s = raw["servo"]
+    assert d["MODEL_SERVO_RETURN_DELAY"] * 2 == s["return_delay_us"]
+    assert d["MODEL_PARK_SPEED"] == min(1023, max(1, round(s["park_speed_rpm"] / 0.111)))
+    assert d["MODEL_WORKING_SPEED"] == min(1023, max(1, round(s["working_speed_rpm"] / 0.111)))
+    assert d["MODEL_SERVO_BOOT_MS"] == round(s["boot_time"] * 1000)
+    assert d["MODEL_SERVO_BAUD"] == s["baud"]
+    for j, name in enumerate(config.JOINTS, start=1):
+        assert d[f"MODEL_SERVO{j}_ID"] == s[name]["id"]
+        ends = sorted(s[name]["zero"] + s[name]["direction"] * raw["joints"][name][k] * 1023 / 300
+                      for k in ("min", "max"))
+        assert (d[f"MODEL_SERVO{j}_CW_LIMIT"], d[f"MODEL_SERVO{j}_CCW_LIMIT"]) == \
+            (math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9))
+        assert _as_f32(d[f"MODEL_PARK_Q{j}"]) == _as_f32(math.radians(raw["park"]["q"][j - 1]))
+    link = raw["link"]
+    assert d["MODEL_LINK_SILENCE_MS"] == round(link["silence_timeout"] * 1000)
+    assert d["MODEL_HEARTBEAT_MS"] == round(link["heartbeat_period"] * 1000)
+    assert d["MODEL_LINK_FRAME_GAP_MS"] == round(link["frame_gap"] * 1000)
+
+
+def test_speed_units_examples():
+    """Worked examples of round(rpm / 0.111): 10 rpm -> 90, 59 rpm (no-load at 12 V) -> 532,
+    the 1023 ceiling at 113.5 rpm, and the floor of 1 (0 would mean "no speed limit")."""
+    from uavarm.model import servo
+    assert [servo.speed_units(r) for r in (10.0, 59.0, 113.5, 0.111, 0.05)] == [90, 532, 1023, 1, 1]

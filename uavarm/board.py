@@ -94,6 +94,7 @@ class SimBoard:
         self.heartbeats: list[dict] = []
         self.heartbeat_times: list[float] = []
         self.servo_tx = bytearray()           # every byte the board put on the servo bus
+        self.servo_rx_bytes = 0               # bytes the servos sent back
         self.commands: list[SyncCommand] = []
         self.power_log: list[tuple[float, bool]] = []
         self.app = self.ffi.new("app_t *")
@@ -129,6 +130,7 @@ class SimBoard:
         self.bus.run_until(self.time)
         rx = self.bus.read()
         if rx:
+            self.servo_rx_bytes += len(rx)
             self.lib.host_port_servo_push(self.hp, rx, len(rx))
         if self.now_us >= self._next_tick:
             self._next_tick += self.tick_us

@@ -56,6 +56,8 @@ typedef struct {
     uint32_t ticks_run;
     uint32_t ticks_missed;         /* requests that came while one was still pending */
     uint32_t last_frame_us;
+    uint32_t link_ms;              /* the link receiver's millisecond clock (wraps at 2^32 ms) */
+    uint32_t link_ms_base_us;      /* the microsecond time link_ms was last advanced to */
     uint32_t last_heartbeat_us;
     uint32_t heartbeats_sent;
     uint32_t heartbeats_dropped;   /* the link's transmit queue was full */

@@ -19,7 +19,10 @@
  * this round and the next servo is read.
  *
  * Received bytes are matched to the request by servo id and parameter count, so the
- * master's own echo (a single-wire UART hears itself) and stray packets are ignored.
+ * master's own echo (a single-wire UART hears itself) and stray packets are ignored. The
+ * usual case, the expected status packet alone on the wire, is checked directly as its
+ * bytes arrive; at the first byte that does not fit it, everything received for the request
+ * goes through the resynchronising parser of dxl_protocol.h instead.
  */
 #ifndef SERVO_BUS_H
 #define SERVO_BUS_H
@@ -87,6 +90,10 @@ typedef struct {
     uint32_t timeout_us;
     uint8_t tx[SBUS_TX_MAX];
     uint8_t tx_len;
+    uint8_t direct[DXL_STATUS_MIN_LEN + SBUS_VERIFY_LEN];   /* the expected reply so far */
+    uint8_t direct_len;
+    bool resync;                   /* this request's bytes go through the parser */
+    const uint8_t *reply_params;   /* the accepted reply's parameters */
     uint8_t rx_buf[SBUS_RX_MAX];
     dxl_parser_t parser;
     /* configuration */

@@ -38,7 +38,7 @@ void app_init(app_t *app, const port_t *port)
     sbus_power(&app->bus, false);
     park_joints(app);
     kin_fk_ee(PARK, app->set_position);   /* engage without a set position holds the park point */
-    app->last_frame_us = app->last_heartbeat_us = now_us(app);
+    app->last_frame_us = app->last_heartbeat_us = app->link_ms_base_us = now_us(app);
     try_imu(app);
 }
 
@@ -95,18 +95,29 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     }
 }
 
+/* A millisecond clock for the link receiver that wraps at 2^32 ms like llcp.h expects.
+ * now_us / 1000 would jump back by 4 294 967 ms when the microsecond clock wraps, so a
+ * frame arriving across the wrap would look older than the frame gap and be dropped. */
+static uint32_t link_ms(app_t *app)
+{
+    const uint32_t whole_ms = (now_us(app) - app->link_ms_base_us) / 1000u;
+    app->link_ms += whole_ms;
+    app->link_ms_base_us += whole_ms * 1000u;
+    return app->link_ms;
+}
+
 static void read_link(app_t *app)
 {
     uint8_t chunk[64];
     size_t n;
     while ((n = app->port->link_read(app->port->ctx, chunk, sizeof chunk)) > 0) {
         for (size_t i = 0; i < n; ++i) {
-            if (llcp_rx_byte(&app->link, (char)chunk[i], now_us(app) / 1000u) == LLCP_RX_FRAME) {
+            if (llcp_rx_byte(&app->link, (char)chunk[i], link_ms(app)) == LLCP_RX_FRAME) {
                 on_frame(app, app->link.payload, app->link.len);
             }
         }
     }
-    (void)llcp_rx_poll(&app->link, now_us(app) / 1000u);
+    (void)llcp_rx_poll(&app->link, link_ms(app));
 }
 
 /* ------------------------------------------------------------------ tick */
@@ -145,18 +156,29 @@ static uint16_t choose_joints(app_t *app, float q[3])
     return MODEL_WORKING_SPEED;
 }
 
-static void tick(app_t *app)
+static void command_servos(app_t *app)
 {
     float q[3];
     uint16_t units[SBUS_SERVOS];
-    sample_imu(app);
-    if (!app->enabled) return;
     const uint16_t speed = choose_joints(app, q);
     /* Last line of defence: nothing reaches a servo unless the generated checks pass. */
     if (kin_check_joints(q) != KIN_OK || !servo_joints_to_units(q, units)) return;
     memcpy(app->q_cmd, q, sizeof q);
     const uint16_t speeds[SBUS_SERVOS] = { speed, speed, speed };
     sbus_command(&app->bus, units, speeds);
+}
+
+static void show_state(const app_t *app)
+{
+    app->port->led(app->port->ctx, 0, app->enabled);
+    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
+}
+
+static void tick(app_t *app)
+{
+    sample_imu(app);
+    if (app->enabled) command_servos(app);
+    show_state(app);
 }
 
 /* ------------------------------------------------------------------ heartbeat */
@@ -255,6 +277,4 @@ void app_poll(app_t *app)
         if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) app->last_heartbeat_us = now;
         send_heartbeat(app);
     }
-    app->port->led(app->port->ctx, 0, app->enabled);
-    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
 }

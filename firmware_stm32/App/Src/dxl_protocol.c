@@ -236,6 +236,9 @@ static candidate_t candidate(const dxl_parser_t *p, uint16_t s)
 
 static void drop_front(dxl_parser_t *p, uint16_t k)
 {
+    if (k == 0) {
+        return;
+    }
     if (k >= p->len) {
         p->len = 0;
         return;
@@ -252,8 +255,8 @@ dxl_parse_result_t dxl_parse_byte(dxl_parser_t *p, uint8_t byte)
      * packet's start). An open candidate is shorter than its total length <= size, so
      * this always leaves room for the new byte. */
     uint16_t s = p->consumed;
-    while (s < p->len && candidate(p, s) != CAND_OPEN) {
-        s++;
+    while (s < p->len && (p->buf[s] != 0xFF || candidate(p, s) != CAND_OPEN)) {
+        s++;   /* (a packet starts with 0xFF: the cheap test first) */
     }
     drop_front(p, s);
     p->consumed = 0;
@@ -264,6 +267,12 @@ dxl_parse_result_t dxl_parse_byte(dxl_parser_t *p, uint8_t byte)
 
     /* Newest start first: after garbage or a truncated packet the latest header is the real one. */
     for (s = p->len; s-- > 0;) {
+        /* only a start whose LEN byte just arrived (too long?) or whose announced length
+         * ends here (done?) can report on this byte: skip the others cheaply */
+        const unsigned n = (unsigned)p->len - s;
+        if (p->buf[s] != 0xFF || !(n == 4u || (n > 4u && n == p->buf[s + PKT_LEN] + 4u))) {
+            continue;
+        }
         switch (candidate(p, s)) {
         case CAND_DONE: {
             const uint8_t *b = p->buf + s;

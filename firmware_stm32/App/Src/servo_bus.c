@@ -127,6 +127,53 @@ static void note_error_byte(sbus_servo_t *s, uint8_t error)
     }
 }
 
+/* One received byte through the resynchronising parser; true when it completed the reply. */
+static bool parse_byte(sbus_t *bus, uint8_t byte)
+{
+    sbus_servo_t *s = servo_of(bus, bus->expect_id);
+    dxl_parse_result_t r = dxl_parse_byte(&bus->parser, byte);
+    if (r == DXL_PARSE_BAD_CHECKSUM && s != NULL) {
+        s->bad_packets++;
+    } else if (r == DXL_PARSE_COMPLETE) {
+        if (bus->parser.id == bus->expect_id && bus->parser.n_params == bus->expect_params) {
+            if (s != NULL) note_error_byte(s, bus->parser.error);
+            bus->reply_params = bus->parser.params;
+            return true;
+        }
+        bus->stray_packets++;   /* our own echo, or a packet meant for no request */
+    }
+    return false;
+}
+
+/* One received byte checked against the expected reply as it arrives; true when it
+ * completed it. At the first byte that does not fit, the bytes so far go to the parser. */
+static bool direct_byte(sbus_t *bus, uint8_t byte)
+{
+    const uint8_t i = bus->direct_len;
+    const uint8_t total = (uint8_t)(DXL_STATUS_MIN_LEN + bus->expect_params);
+    bool fits;
+    switch (i) {
+    case 0: case 1: fits = byte == 0xFF; break;
+    case 2: fits = byte == bus->expect_id; break;
+    case 3: fits = byte == bus->expect_params + 2u; break;
+    case 4: fits = byte <= 0x7Fu; break;
+    default: fits = i + 1u < total || dxl_checksum(bus->direct + 2, total - 3u) == byte; break;
+    }
+    if (!fits) {
+        bus->resync = true;
+        for (uint8_t k = 0; k < i; ++k) {
+            if (parse_byte(bus, bus->direct[k])) return true;
+        }
+        return parse_byte(bus, byte);
+    }
+    bus->direct[bus->direct_len++] = byte;
+    if (bus->direct_len < total) return false;
+    sbus_servo_t *s = servo_of(bus, bus->expect_id);
+    if (s != NULL) note_error_byte(s, bus->direct[4]);
+    bus->reply_params = bus->direct + 5;
+    return true;
+}
+
 /* Advances the transaction on the wire; true when it has ended, with *how. */
 static bool transaction_done(sbus_t *bus, int *how)
 {
@@ -146,18 +193,10 @@ static bool transaction_done(sbus_t *bus, int *how)
     size_t n;
     while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
         for (size_t i = 0; i < n; ++i) {
-            dxl_parse_result_t r = dxl_parse_byte(&bus->parser, chunk[i]);
-            sbus_servo_t *s = servo_of(bus, bus->expect_id);
-            if (r == DXL_PARSE_BAD_CHECKSUM && s != NULL) {
-                s->bad_packets++;
-            } else if (r == DXL_PARSE_COMPLETE) {
-                if (bus->parser.id == bus->expect_id && bus->parser.n_params == bus->expect_params) {
-                    if (s != NULL) note_error_byte(s, bus->parser.error);
-                    bus->phase = PHASE_IDLE;
-                    *how = DONE_OK;
-                    return true;   /* bytes after it are dropped when the next request starts */
-                }
-                bus->stray_packets++;   /* our own echo, or a packet meant for no request */
+            if (bus->resync ? parse_byte(bus, chunk[i]) : direct_byte(bus, chunk[i])) {
+                bus->phase = PHASE_IDLE;
+                *how = DONE_OK;
+                return true;   /* bytes after it are dropped when the next request starts */
             }
         }
     }
@@ -176,6 +215,8 @@ static void flush_rx(sbus_t *bus)
     while (bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk) > 0) {
     }
     dxl_parser_reset(&bus->parser);
+    bus->direct_len = 0;
+    bus->resync = false;
 }
 
 /* --------------------------------------------------------------- configuration */
@@ -211,7 +252,7 @@ static size_t build_config_step(sbus_t *bus, uint8_t step, const sbus_servo_t *s
 /* The read-back of addresses 5..35 shows every register written above. */
 static bool config_verified(const sbus_t *bus, uint16_t cw, uint16_t ccw)
 {
-#define REG8(addr) ((uint16_t)bus->parser.params[(addr) - SBUS_VERIFY_ADDR])
+#define REG8(addr) ((uint16_t)bus->reply_params[(addr) - SBUS_VERIFY_ADDR])
 #define REG16(addr) ((uint16_t)(REG8(addr) | REG8((addr) + 1u) << 8))
     return REG8(AX_RETURN_DELAY) == MODEL_SERVO_RETURN_DELAY
         && REG16(AX_CW_ANGLE_LIMIT) == cw && REG16(AX_CW_ANGLE_LIMIT + 2u) == ccw
@@ -279,7 +320,7 @@ static void run(sbus_t *bus)
         if (!transaction_done(bus, &how) || bus->reply == REPLY_NONE) return;
         sbus_servo_t *s = &bus->servo[bus->read_index];
         if (how == DONE_OK) {
-            take_status(s, bus->parser.params);
+            take_status(s, bus->reply_params);
         } else {
             s->timeouts++;
             if (bus->read_attempt < SBUS_READ_RETRIES) {

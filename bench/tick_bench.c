@@ -1,0 +1,125 @@
+/*
+ * The whole 100 Hz tick of the firmware application on Cortex-M4, for `make bench`:
+ * app_init, then enable + engage + a set position through LLCP frames, then n ticks, each
+ * one IMU burst (tilting board), the stabiliser, IK, servo map, the SYNC_WRITE, one status
+ * READ and the parse of its reply. The port is a minimal in-memory board.
+ *
+ * bench/run.py reports (cycles(bench_run(n, 1)) - cycles(bench_run(n, 0))) / n: what a
+ * tick adds to the main loop's idle passes.
+ */
+#include <string.h>
+
+#include "app.h"
+#include "dxl_protocol.h"
+#include "imu_mpu6050.h"
+#include "llcp.h"
+#include "messages.h"
+#include "model_params.h"
+
+static uint32_t now;
+static uint8_t imu_regs[128];
+static char link_in[256];
+static size_t link_len, link_pos;
+static uint8_t reply[DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN];
+static size_t reply_len, reply_pos;
+static app_t app;
+
+static uint32_t time_us(void *ctx) { (void)ctx; return now; }
+static size_t link_read(void *ctx, uint8_t *buf, size_t cap)
+{
+    (void)ctx;
+    size_t n = link_len - link_pos < cap ? link_len - link_pos : cap;
+    memcpy(buf, link_in + link_pos, n);
+    link_pos += n;
+    return n;
+}
+static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (void)buf; (void)n; return true; }
+/* Every READ is answered at once with a status packet of the requested servo. */
+static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
+{
+    (void)ctx;
+    if (n == 8 && buf[4] == DXL_INST_READ) {
+        reply[0] = reply[1] = 0xFF;
+        reply[2] = buf[2];
+        reply[3] = SBUS_STATUS_LEN + 2;
+        reply[4] = 0;
+        memset(reply + 5, 0, SBUS_STATUS_LEN);
+        reply[5] = 0x00;
+        reply[6] = 0x02;   /* position 512 */
+        reply[sizeof reply - 1] = dxl_checksum(reply + 2, sizeof reply - 3);
+        reply_len = sizeof reply;
+        reply_pos = 0;
+    }
+    return true;
+}
+static bool servo_busy(void *ctx) { (void)ctx; return false; }
+static size_t servo_read(void *ctx, uint8_t *buf, size_t cap)
+{
+    (void)ctx;
+    size_t n = reply_len - reply_pos < cap ? reply_len - reply_pos : cap;
+    memcpy(buf, reply + reply_pos, n);
+    reply_pos += n;
+    return n;
+}
+static void servo_power(void *ctx, bool on) { (void)ctx; (void)on; }
+static void led(void *ctx, uint8_t index, bool on) { (void)ctx; (void)index; (void)on; }
+static bool imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t n)
+{
+    (void)ctx; (void)addr;
+    memcpy(buf, imu_regs + reg, n);   /* the STM32 port reads by DMA */
+    return true;
+}
+static bool imu_write(void *ctx, uint8_t addr, uint8_t reg, uint8_t value)
+{
+    (void)ctx; (void)addr;
+    imu_regs[reg & 127u] = value;
+    return true;
+}
+
+static const port_t PORT = {
+    NULL, time_us, link_read, link_write, servo_send, servo_busy, servo_read, servo_power, led,
+    imu_read, imu_write,
+};
+
+static void frame(const uint8_t *payload, size_t n)
+{
+    link_len += llcp_encode(payload, n, link_in + link_len, sizeof link_in - link_len);
+}
+
+static int setup(void)
+{
+    uint8_t payload[MSG_SET_POSITION_SIZE];
+    const msg_enable_t enable = { 1 };
+    const msg_engage_t engage = { 1 };
+    const msg_set_position_t set = { 60.0f, 20.0f, -120.0f };
+    imu_regs[MPU_REG_WHO_AM_I] = MPU_WHO_AM_I;
+    app_init(&app, &PORT);
+    frame(payload, msg_enable_pack(&enable, payload, sizeof payload));
+    frame(payload, msg_set_position_pack(&set, payload, sizeof payload));
+    frame(payload, msg_engage_pack(&engage, payload, sizeof payload));
+    app_poll(&app);
+    app.bus.state = SBUS_RUNNING;   /* skip the servo boot and configuration */
+    return app.engaged;
+}
+
+/* raw: n samples of accel x, y, z and gyro x, y, z counts. ticks = 0 runs the same main-loop
+ * passes without requesting ticks: the idle cost, which bench/run.py subtracts. */
+int bench_run(const int32_t *raw, uint32_t n, uint32_t ticks)
+{
+    int ok = setup();
+    for (uint32_t k = 0; k < n; ++k) {
+        for (int i = 0; i < 3; ++i) {
+            const uint16_t a = (uint16_t)raw[6 * k + i], g = (uint16_t)raw[6 * k + 3 + i];
+            imu_regs[MPU_REG_ACCEL_XOUT_H + 2 * i] = (uint8_t)(a >> 8);
+            imu_regs[MPU_REG_ACCEL_XOUT_H + 2 * i + 1] = (uint8_t)a;
+            imu_regs[MPU_REG_ACCEL_XOUT_H + 8 + 2 * i] = (uint8_t)(g >> 8);
+            imu_regs[MPU_REG_ACCEL_XOUT_H + 9 + 2 * i] = (uint8_t)g;
+        }
+        now += MODEL_TICK_US;
+        if (ticks) app_request_tick(&app);
+        app_poll(&app);   /* the tick: IMU, stabiliser, IK, command; SYNC_WRITE out */
+        app_poll(&app);   /* status READ out */
+        app_poll(&app);   /* reply parsed */
+    }
+    return ok && app.bus.sync_writes == (ticks ? n : 0);
+}

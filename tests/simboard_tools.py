@@ -1,0 +1,286 @@
+"""Shared tools of the end-to-end tests of the firmware application (test_servo_bus.py,
+test_app.py), which reach it only through uavarm.board.SimBoard: LLCP bytes in, servo-bus
+bytes out, simulated servos, heartbeat frames back.
+
+Every oracle here is independent of the C under test:
+- what goes on the servo bus: Protocol 1.0 framing as reference/AX12_FACTS.md states it
+  (`split_packets`), and the official DynamixelSDK's packet builders (`sdk_rebuild`);
+- units <-> joint angles: the model's servo map (model/servo.py);
+- joint limits and collisions: tests/oracles.py's plain geometry (`pose_ok`).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import dynamixel_sdk as sdk
+import numpy as np
+
+import oracles
+from uavarm import ax12_sim, messages
+from uavarm.board import SimBoard, baud_register
+from uavarm.model import config, servo as servo_map
+
+MODEL = config.load()
+US = 1_000_000
+
+# Protocol 1.0 (AX12_FACTS.md "Instructions")
+INST_READ = 0x02
+INST_WRITE = 0x03
+INST_SYNC_WRITE = 0x83
+BROADCAST_ID = 0xFE
+
+# heartbeat.faults bit of each FAULTS name (model/messages.py, lowest bit first)
+FAULT = {name: 1 << i for i, (name, _) in enumerate(messages.FAULTS)}
+
+IDS = [s.id for s in MODEL.servos]
+TICK = 1.0 / MODEL.sample_rate
+UNIT_RAD = math.radians(MODEL.servo_range_deg) / MODEL.servo_units_max   # one position unit
+
+
+# ---------------------------------------------------------------- bus packets
+
+@dataclass(frozen=True)
+class Packet:
+    """One instruction packet as it left the board: start of its first byte and end of its
+    last stop bit (bus seconds)."""
+    start: float
+    end: float
+    raw: bytes
+
+    @property
+    def id(self) -> int:
+        return self.raw[2]
+
+    @property
+    def inst(self) -> int:
+        return self.raw[4]
+
+    @property
+    def params(self) -> bytes:
+        return self.raw[5:-1]
+
+
+def split_packets(data: bytes) -> list[bytes]:
+    """Cuts a stream of instruction packets into packets, AX12_FACTS.md "Protocol 1.0
+    packets": FF FF ID LEN INST P1..PN CHK with LEN = N + 2 and CHK = ~(ID + LEN + INST +
+    P1 + ... + PN) & 0xFF. Every byte must belong to a well-formed packet."""
+    out, i = [], 0
+    data = bytes(data)
+    while i < len(data):
+        assert data[i:i + 2] == b"\xff\xff", f"no packet header at byte {i}: {data[i:].hex(' ')}"
+        assert i + 4 <= len(data), f"truncated packet: {data[i:].hex(' ')}"
+        n = data[i + 3] + 4
+        pkt = data[i:i + n]
+        assert len(pkt) == n, f"truncated packet: {pkt.hex(' ')}"
+        assert pkt[3] >= 2
+        assert (~sum(pkt[2:-1])) & 0xFF == pkt[-1], f"bad checksum: {pkt.hex(' ')}"
+        out.append(pkt)
+        i += n
+    return out
+
+
+class _MemPort:
+    """The little of a PortHandler that the SDK's transmit-only calls need."""
+
+    def __init__(self):
+        self.is_using = False
+        self.out = bytearray()
+
+    def clearPort(self):
+        pass
+
+    def writePort(self, packet):
+        self.out += bytes(packet)
+        return len(packet)
+
+    def setPacketTimeout(self, packet_length):
+        pass
+
+
+_PH = sdk.Protocol1PacketHandler()
+
+
+def sdk_rebuild(pkt: bytes) -> bytes:
+    """The same instruction built by the official DynamixelSDK (Protocol1PacketHandler)."""
+    port = _MemPort()
+    id_, inst, params = pkt[2], pkt[4], list(pkt[5:-1])
+    if inst == INST_WRITE:
+        assert _PH.writeTxOnly(port, id_, params[0], len(params) - 1, params[1:]) == sdk.COMM_SUCCESS
+    elif inst == INST_READ:
+        assert len(params) == 2
+        assert _PH.readTx(port, id_, params[0], params[1]) == sdk.COMM_SUCCESS
+    elif inst == INST_SYNC_WRITE:
+        assert id_ == BROADCAST_ID
+        assert _PH.syncWriteTxOnly(port, params[0], params[1], params[2:], len(params) - 2) == sdk.COMM_SUCCESS
+    else:
+        raise AssertionError(f"unexpected instruction 0x{inst:02X} in {pkt.hex(' ')}")
+    return bytes(port.out)
+
+
+def sync_entries(pkt: bytes) -> tuple[int, int, dict[int, bytes]]:
+    """(start address, data length, {id: data}) of a SYNC_WRITE (AX12_FACTS.md)."""
+    p = pkt[5:-1]
+    addr, size, entries = p[0], p[1], p[2:]
+    assert size > 0 and len(entries) % (size + 1) == 0
+    return addr, size, {entries[k]: bytes(entries[k + 1:k + 1 + size])
+                        for k in range(0, len(entries), size + 1)}
+
+
+def sync_goal_speed(pkt: bytes) -> tuple[list[int], list[int]]:
+    """Goal position and moving speed per joint (model order) of a SYNC_WRITE at 30."""
+    addr, size, entries = sync_entries(pkt)
+    assert (addr, size) == (30, 4), f"SYNC_WRITE of {size} bytes at {addr}"
+    assert sorted(entries) == sorted(IDS)
+    goal = [int.from_bytes(entries[i][0:2], "little") for i in IDS]
+    speed = [int.from_bytes(entries[i][2:4], "little") for i in IDS]
+    return goal, speed
+
+
+class BusLog:
+    """Records, in bus time, every instruction packet the board sends and every status
+    packet a simulated servo sends back, by wrapping the bus simulator's entry points."""
+
+    def __init__(self, board: SimBoard):
+        self.board = board
+        self.tx: list[Packet] = []
+        self.replies: list[Packet] = []        # (start, end, bytes) of status packets
+        self.tx_power: list[bool] = []          # the supply switch as each packet left
+        bus = board.bus
+        write, send_reply = bus.write, bus._send_reply
+
+        def logged_write(data):
+            start = max(bus.time, bus._tx_end)
+            end = write(data)
+            t = start
+            for pkt in split_packets(data):
+                t_end = t + len(pkt) * bus.byte_time
+                self.tx.append(Packet(t, t_end, pkt))
+                self.tx_power.append(board.servo_power)
+                t = t_end
+            assert math.isclose(t, end)
+            return end
+
+        def logged_reply(start, data):
+            self.replies.append(Packet(start, start + len(data) * bus.byte_time, bytes(data)))
+            return send_reply(start, data)
+
+        bus.write = logged_write
+        bus._send_reply = logged_reply
+
+    def syncs(self, since: float = -1.0) -> list[Packet]:
+        return [p for p in self.tx if p.inst == INST_SYNC_WRITE and p.start >= since]
+
+    def reads(self, since: float = -1.0) -> list[Packet]:
+        return [p for p in self.tx if p.inst == INST_READ and p.start >= since]
+
+
+# ---------------------------------------------------------------- units and geometry
+
+def joint_units(j: int, rad: float) -> float:
+    return float(servo_map.joint_to_units(MODEL, j, rad))
+
+
+@lru_cache(maxsize=None)
+def _units_to_rad(j: int, units: float) -> float:
+    return float(servo_map.units_to_joint(MODEL, j, units))
+
+
+def units_to_joints(units) -> np.ndarray:
+    return np.array([_units_to_rad(j, float(u)) for j, u in enumerate(units)])
+
+
+PARK_Q = [math.radians(d) for d in MODEL.park_deg]
+PARK_UNITS = [joint_units(j, q) for j, q in enumerate(PARK_Q)]
+PARK_SPEED = servo_map.speed_units(MODEL.park_speed_rpm)
+WORKING_SPEED = servo_map.speed_units(MODEL.working_speed_rpm)
+UNIT_RANGE = [servo_map.unit_range(MODEL, j) for j in range(3)]
+
+
+def ee_of_units(units) -> np.ndarray:
+    """End effector (base frame, mm) of servo positions, by plain geometry."""
+    return oracles.arm_points(MODEL, units_to_joints(units))[2]
+
+
+def shaft_units(board: SimBoard) -> list[float]:
+    return [board.bus.servo(i).position for i in IDS]
+
+
+def _relaxed_model():
+    """The model with every collision boundary moved out by what rounding a joint angle to
+    the nearest servo unit (half a unit, 0.147 deg, per joint) can move the arm."""
+    half = 0.5 * UNIT_RAD
+    reach = MODEL.L2 + MODEL.L3
+    mm = half * (reach + reach + MODEL.L3) + 1e-3   # joint 1 swings <= reach, 2 and 3 too
+    deg = math.degrees(half) + 1e-4
+    limits = tuple(dataclasses.replace(l, min_deg=l.min_deg - deg, max_deg=l.max_deg + deg)
+                   for l in MODEL.limits)
+    return dataclasses.replace(MODEL, limits=limits, body_z=MODEL.body_z + mm,
+                               leg_distance=MODEL.leg_distance + mm,
+                               leg_half_width=MODEL.leg_half_width - deg)
+
+
+RELAXED = _relaxed_model()
+
+
+def pose_ok(goal_units) -> bool:
+    """A commanded goal inside the servos' unit ranges of the joint limits, and a pose the
+    plain-geometry check accepts up to the servo rounding."""
+    if not all(lo <= u <= hi for u, (lo, hi) in zip(goal_units, UNIT_RANGE)):
+        return False
+    status, _ = oracles.check_pose(RELAXED, units_to_joints(goal_units))
+    return int(status[0]) == 0
+
+
+def level_ik_ok(p) -> bool:
+    """A point the arm can reach from a level base by the plain-geometry oracles."""
+    q, exists = oracles.textbook_ik(MODEL, np.asarray(p, dtype=float))
+    if not exists[0].any():
+        return False
+    status, _ = oracles.check_pose(MODEL, q[0][exists[0]])
+    return bool((status == 0).any())
+
+
+# ---------------------------------------------------------------- boards
+
+def make_board(at=None, **kw) -> SimBoard:
+    """A SimBoard whose servos (one per joint, at the bus's baud) rest at `at` (units per
+    joint; default the park pose, so tests not about parking need not wait for it)."""
+    at = PARK_UNITS if at is None else at
+    servos = [ax12_sim.AX12(s.id, position=float(round(u)), table={"baud_rate": baud_register(MODEL.servo_baud)})
+              for s, u in zip(MODEL.servos, at)]
+    return SimBoard(MODEL, servos=servos, **kw)
+
+
+def run_until(board: SimBoard, cond, timeout: float, step: float = 0.005) -> float | None:
+    """Runs until cond() holds (checked every `step`); the time it first held, or None."""
+    end = board.time + timeout
+    while board.time < end - 1e-9:
+        if cond():
+            return board.time
+        board.run(min(step, end - board.time))
+    return board.time if cond() else None
+
+
+def running(board: SimBoard) -> bool:
+    """The servo driver has configured every servo (the first SYNC_WRITE is out)."""
+    return len(board.commands) > 0 and board.servo_power
+
+
+def last_hb(board: SimBoard) -> dict:
+    assert board.heartbeats, "no heartbeat yet"
+    return board.heartbeats[-1]
+
+
+def run_to_next_heartbeat(board: SimBoard) -> dict:
+    n = len(board.heartbeats)
+    period = MODEL.heartbeat_period
+    assert run_until(board, lambda: len(board.heartbeats) > n, period + 0.01, step=0.001) is not None
+    return board.heartbeats[-1]
+
+
+def servo_c(board: SimBoard, j: int):
+    """The driver's record of joint j's servo (counters), from the application's state."""
+    return board.app.bus.servo[j]
