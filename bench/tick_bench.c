@@ -24,14 +24,20 @@ static uint8_t reply[DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN];
 static size_t reply_len, reply_pos;
 static app_t app;
 
+/* Up to cap of the bytes src[*pos .. len-1]. */
+static size_t take(const void *src, size_t len, size_t *pos, uint8_t *buf, size_t cap)
+{
+    size_t n = len - *pos < cap ? len - *pos : cap;
+    memcpy(buf, (const uint8_t *)src + *pos, n);
+    *pos += n;
+    return n;
+}
+
 static uint32_t time_us(void *ctx) { (void)ctx; return now; }
 static size_t link_read(void *ctx, uint8_t *buf, size_t cap)
 {
     (void)ctx;
-    size_t n = link_len - link_pos < cap ? link_len - link_pos : cap;
-    memcpy(buf, link_in + link_pos, n);
-    link_pos += n;
-    return n;
+    return take(link_in, link_len, &link_pos, buf, cap);
 }
 static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (void)buf; (void)n; return true; }
 /* Every READ is answered at once with a status packet of the requested servo. */
@@ -44,7 +50,6 @@ static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
         reply[3] = SBUS_STATUS_LEN + 2;
         reply[4] = 0;
         memset(reply + 5, 0, SBUS_STATUS_LEN);
-        reply[5] = 0x00;
         reply[6] = 0x02;   /* position 512 */
         reply[sizeof reply - 1] = dxl_checksum(reply + 2, sizeof reply - 3);
         reply_len = sizeof reply;
@@ -56,10 +61,7 @@ static bool servo_busy(void *ctx) { (void)ctx; return false; }
 static size_t servo_read(void *ctx, uint8_t *buf, size_t cap)
 {
     (void)ctx;
-    size_t n = reply_len - reply_pos < cap ? reply_len - reply_pos : cap;
-    memcpy(buf, reply + reply_pos, n);
-    reply_pos += n;
-    return n;
+    return take(reply, reply_len, &reply_pos, buf, cap);
 }
 static void servo_power(void *ctx, bool on) { (void)ctx; (void)on; }
 static void led(void *ctx, uint8_t index, bool on) { (void)ctx; (void)index; (void)on; }

@@ -28,8 +28,10 @@ REGENERATE = "make codegen"
 Q = [f"q[{i}]" for i in range(3)]
 
 
-def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", "c1", "s2", "c2", "s3", "c3")):
-    """Replace sin/cos of the angles by locals filled by fm_sincosf; returns (exprs, C lines)."""
+def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", "c1", "s2", "c2", "s3", "c3"),
+               cached=None):
+    """Replace sin/cos of the angles by locals filled by fm_sincosf, or, with cached = C
+    expressions (sin, cos of each angle), read from there; returns (exprs, C lines)."""
     pairs = [(sp.Symbol(names[2 * i]), sp.Symbol(names[2 * i + 1])) for i in range(len(angles))]
     subs = {}
     for a, (si, ci) in zip(angles, pairs):
@@ -41,6 +43,9 @@ def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", 
     present = [i for i, (si, ci) in enumerate(pairs) if si in used or ci in used]
     if not present:
         return out, []
+    if cached is not None:
+        return out, [f"const float {pairs[i][0]} = {cached[2 * i]}, {pairs[i][1]} = {cached[2 * i + 1]};"
+                     for i in present]
     decl = "float " + ", ".join(f"{pairs[i][0]}, {pairs[i][1]}" for i in present) + ";"
     return out, [decl] + [f"fm_sincosf({c_angles[i]}, &{pairs[i][0]}, &{pairs[i][1]});" for i in present]
 
@@ -122,12 +127,15 @@ def estimator_context(m: config.Model):
     tilt = attitude.tilt_from_accel(m)
     step = attitude.complementary_step(m)
     rot = attitude.level_to_base(attitude.roll, attitude.pitch) * sp.Matrix(p)
-    angles = dict(angles=(attitude.roll, attitude.pitch), c_angles=("roll", "pitch"),
-                  names=("sr", "cr", "sp", "cp"))
+    # sin and cos of the attitude are kept with it (est_set), so no step computes them twice
+    angles = dict(angles=(attitude.roll, attitude.pitch), c_angles=("e->roll", "e->pitch"),
+                  names=("sr", "cr", "sp", "cp"),
+                  cached=("e->sin_roll", "e->cos_roll", "e->sin_pitch", "e->cos_pitch"))
     return {
         "tilt": _function([("*roll", tilt[0]), ("*pitch", tilt[1])], acc, acc_c),
         "step": _function([("const float next_roll", step[0]), ("const float next_pitch", step[1])],
-                          acc + gyro, acc_c + gyro_c, **angles),
+                          (attitude.roll, attitude.pitch) + acc + gyro, ["e->roll", "e->pitch"] + acc_c + gyro_c,
+                          **angles),
         "to_base": _function([(f"p_base[{i}]", rot[i]) for i in range(3)], p, p_c, **angles),
         "mounting": [[float(v) for v in row] for row in attitude.mounting(m).tolist()],
     }

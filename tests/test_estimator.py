@@ -68,7 +68,7 @@ class Build:
 
     def step(self, state, acc, gyro):
         """One C step from `state` (roll, pitch); returns the new (roll, pitch)."""
-        self.e.roll, self.e.pitch = state
+        self.lib.est_set(self.e, *state)
         self.acc[0:3] = [float(v) for v in acc]
         self.gyro[0:3] = [float(v) for v in gyro]
         self.lib.est_complementary_step(self.e, self.acc, self.gyro)
@@ -172,7 +172,7 @@ def test_level_to_base_matches_scipy(gen):
     e, p_in, p_out = ffi.new("est_attitude_t *"), ffi.new("float[3]"), ffi.new("float[3]")
     worst = 0.0
     for (roll, pitch), p in zip(rp, pts):
-        e.roll, e.pitch = roll, pitch
+        lib.est_set(e, roll, pitch)
         p_in[0:3] = p.tolist()
         lib.est_level_to_base(e, p_in, p_out)
         want = r_wb(roll, pitch).inv().apply(p)
@@ -367,7 +367,7 @@ def test_attitude_always_finite(gen, roll, pitch, samples):
     e, acc, gyro = ffi.new("est_attitude_t *"), ffi.new("float[3]"), ffi.new("float[3]")
     out = [ffi.new("float *"), ffi.new("float *")]
     p, q = ffi.new("float[3]", [120.0, -80.0, -150.0]), ffi.new("float[3]")
-    e.roll, e.pitch = roll, pitch
+    lib.est_set(e, roll, pitch)
     for a, g in samples:
         acc[0:3] = [v * ACCEL_LSB for v in a]
         gyro[0:3] = [v * GYRO_LSB_2000 for v in g]
@@ -388,7 +388,7 @@ def test_sustained_full_scale_gyro_stays_finite(gen):
     worst = 0.0
     for signs in [(1, 1, 1), (1, -1, 1), (0, 1, 1), (1, 0, -1), (-1, 1, 0), (0, 0, 1)]:
         for a in ([0.0, 0.0, 1.0], [0.0, 0.0, -1.0]):
-            e.roll, e.pitch = 0.0, 1.5
+            lib.est_set(e, 0.0, 1.5)
             acc[0:3] = a
             gyro[0:3] = [s * g for s in signs]
             for _ in range(2000):
