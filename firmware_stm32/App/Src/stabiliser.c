@@ -6,6 +6,7 @@
 void stab_reset(stab_t *s)
 {
     memset(s, 0, sizeof *s);
+    est_set(&s->attitude, 0.0f, 0.0f);   /* level until the first sample */
 }
 
 void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3])
