@@ -45,6 +45,11 @@ MESSAGES = (
             "1 (only while enabled): go to the set position and stabilise; 0: park"),
     Message("set_position", 0x12, "to_arm", (("x", "f32"), ("y", "f32"), ("z", "f32")),
             "end-effector target in mm, gravity-aligned heading-following frame at the arm's base"),
+    Message("drone_attitude", 0x13, "to_arm",
+            (("seq", "u16"), ("stamp_us", "u32"), ("roll", "f32"), ("pitch", "f32")),
+            "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
+            "seq counts up by one per message, stamp_us is the drone's clock. Any valid frame "
+            "keeps the link alive; fusing it into the estimate is the closed-loop issue's job"),
     Message("heartbeat", 0x20, "to_drone", (
         ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"),
         ("faults", "u16"),

@@ -69,10 +69,11 @@ class SimBoard:
     per joint, at the bus's baud, resting at their centre); motion: an object whose
     imu(t) gives (accel_g, gyro_rad_s) in the IMU axes (default: level and still);
     start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
-    poll_us: main-loop period."""
+    poll_us: main-loop period; record: keep every servo byte and command (tests) or only
+    the last heartbeats (long runs such as the SITL)."""
 
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
-                 poll_us: int = 100, lib=None, bus_echo: bool = False):
+                 poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -97,6 +98,9 @@ class SimBoard:
         self.servo_rx_bytes = 0               # bytes the servos sent back
         self.commands: list[SyncCommand] = []
         self.power_log: list[tuple[float, bool]] = []
+        self.link_out = bytearray()           # bytes the board sent to the drone, not yet taken
+        self.record = record
+        self._buf = self.ffi.new("uint8_t[]", 512)
         self.app = self.ffi.new("app_t *")
         self._clock()
         self.lib.app_init(self.app, self.ffi.addressof(self.hp, "port"))
@@ -149,22 +153,33 @@ class SimBoard:
             self._power = bool(self.hp.servo_power)
             self.bus.power(self._power)
             self.power_log.append((self.time, self._power))
-        buf = self.ffi.new("uint8_t[]", 512)
-        n = self.lib.host_port_servo_take(self.hp, buf, 512)
+        buf = self._buf
+        n = self.lib.host_port_servo_take(self.hp, buf, len(buf))
         if n:
             data = bytes(self.ffi.buffer(buf, n))
-            self.servo_tx += data
             self.bus.write(data)
-            for id_, inst, params in parse_instructions(data):
-                if inst == ax12_sim.INST_SYNC_WRITE:
-                    self.commands.append(self._sync_command(params))
-        n = self.lib.host_port_link_take(self.hp, buf, 512)
+            if self.record:
+                self.servo_tx += data
+                for id_, inst, params in parse_instructions(data):
+                    if inst == ax12_sim.INST_SYNC_WRITE:
+                        self.commands.append(self._sync_command(params))
+        n = self.lib.host_port_link_take(self.hp, buf, len(buf))
         if n:
-            for payload in self._link.feed(bytes(self.ffi.buffer(buf, n)), self.time):
+            data = bytes(self.ffi.buffer(buf, n))
+            self.link_out += data
+            for payload in self._link.feed(data, self.time):
                 name, fields = messages.decode(payload)
                 if name == "heartbeat":
                     self.heartbeats.append(fields)
                     self.heartbeat_times.append(self.time)
+            if not self.record:
+                del self.heartbeats[:-10], self.heartbeat_times[:-10]
+
+    def take_link_output(self) -> bytes:
+        """The bytes the board has sent to the drone since the last call."""
+        data = bytes(self.link_out)
+        self.link_out.clear()
+        return data
 
     def _sync_command(self, params: bytes) -> SyncCommand:
         addr, size = params[0], params[1]

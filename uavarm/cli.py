@@ -1,4 +1,4 @@
-"""The `uavarm` command: `uavarm codegen [...]`, `uavarm demo`."""
+"""The `uavarm` command: codegen, demo, link (talk to a board), sitl (a simulated board)."""
 from __future__ import annotations
 
 import argparse
@@ -9,7 +9,6 @@ import sys
 def demo(args) -> int:
     """The simulated board: enable, go to a target on a tilted board, print heartbeats."""
     from .board import Gravity, SimBoard
-    from .messages import fault_names
     board = SimBoard(motion=Gravity(math.radians(args.roll), math.radians(args.pitch)))
     steps = [(0.0, "enable", {"on": 1}), (1.5, "set_position", dict(zip("xyz", args.target))),
              (1.5, "engage", {"on": 1})]
@@ -22,10 +21,42 @@ def demo(args) -> int:
         board.run(0.25)
         board.send("set_position", **dict(zip("xyz", args.target)))   # keeps the link alive
         for hb in board.heartbeats[shown:]:
-            q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
-            print(f"{board.time:6.2f} s  <- enabled {hb['enabled']} engaged {hb['engaged']} "
-                  f"unreachable {hb['unreachable']} joints [{q}] deg  faults {fault_names(hb['faults'])}")
+            print(f"{board.time:6.2f} s  <- {_heartbeat_line(hb)}")
         shown = len(board.heartbeats)
+    return 0
+
+
+def _heartbeat_line(hb) -> str:
+    from .messages import fault_names
+    q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
+    return (f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
+            f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "
+            f"faults {fault_names(hb['faults'])} servo errors "
+            f"{[hb[f'servo{i}_error'] for i in (1, 2, 3)]} link frames {hb['link_frames_ok']} "
+            f"link errors {hb['link_errors']} servo timeouts {hb['servo_timeouts']}")
+
+
+def link(args) -> int:
+    from .link import ArmLink, LinkError
+    try:
+        with ArmLink(args.port, args.baud) as arm:
+            if args.action == "monitor":
+                while True:
+                    hb = arm.next_heartbeat()
+                    print(_heartbeat_line(hb), flush=True)
+                    if args.keep_alive:
+                        arm.keep_alive()
+            action = {
+                "enable": arm.enable, "disable": arm.disable, "engage": arm.engage,
+                "disengage": arm.disengage, "status": arm.next_heartbeat,
+                "goto": lambda: arm.set_position(*args.xyz),
+            }[args.action]
+            print(_heartbeat_line(action()))
+    except LinkError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        pass
     return 0
 
 
@@ -39,12 +70,34 @@ def main(argv=None) -> int:
     d.add_argument("--roll", type=float, default=10.0, help="board tilt, degrees")
     d.add_argument("--pitch", type=float, default=-5.0, help="board tilt, degrees")
     d.add_argument("--seconds", type=float, default=4.0)
+    lk = sub.add_parser("link", help="command a board (or a SITL) over its serial port")
+    lk.add_argument("port", help="serial device, e.g. /dev/ttyACM0 or the path `uavarm sitl` prints")
+    lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor"])
+    lk.add_argument("xyz", type=float, nargs="*", metavar="X Y Z", help="goto: target in mm")
+    lk.add_argument("--baud", type=int, default=115200, help="ignored by USB CDC; for UART adapters")
+    lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
+                    help="monitor: do not repeat the set position (an engaged arm then parks after the "
+                         "link silence timeout)")
+    st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
+    st.add_argument("scenario", nargs="?", default="level", help="level (default) or tilt:ROLL,PITCH (deg)")
+    st.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second")
     args, rest = ap.parse_known_args(argv)
     if args.command == "codegen":
         from .codegen.generate import main as codegen_main
         return codegen_main(rest)
     if rest:
         ap.error(f"unrecognized arguments: {' '.join(rest)}")
+    if args.command == "link":
+        if (args.action == "goto") != (len(args.xyz) == 3) or (args.action != "goto" and args.xyz):
+            ap.error("goto takes exactly X Y Z; the other actions take none")
+        return link(args)
+    if args.command == "sitl":
+        from . import sitl
+        try:
+            sitl.motion_of(args.scenario)
+        except ValueError as exc:
+            ap.error(str(exc))
+        return sitl.main(args.scenario, args.speed)
     return demo(args)
 
 

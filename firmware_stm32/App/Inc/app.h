@@ -62,6 +62,7 @@ typedef struct {
     uint32_t heartbeats_sent;
     uint32_t heartbeats_dropped;   /* the link's transmit queue was full */
     uint32_t commands_ignored;     /* valid frames of messages the arm does not take */
+    uint32_t drone_attitudes;      /* drone_attitude frames received */
 } app_t;
 
 void app_init(app_t *app, const port_t *port);

@@ -79,6 +79,7 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     msg_enable_t enable;
     msg_engage_t engage;
     msg_set_position_t set;
+    msg_drone_attitude_t attitude;
     app->last_frame_us = now_us(app);
     if (msg_enable_unpack(payload, len, &enable)) {
         app->refused = false;
@@ -90,6 +91,8 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         if (app->engaged) app->link_lost = false;
     } else if (msg_set_position_unpack(payload, len, &set)) {
         on_set_position(app, &set);
+    } else if (msg_drone_attitude_unpack(payload, len, &attitude)) {
+        app->drone_attitudes++;   /* keeps the link alive; not fused into the estimate yet */
     } else {
         app->commands_ignored++;
     }

@@ -1,0 +1,159 @@
+"""The drone side: the link client and the command line against the simulated board behind a
+pseudo-terminal (SITL), as they would talk to the real board's USB serial port."""
+import math
+import os
+import subprocess
+import sys
+import threading
+import time
+import tty
+
+import numpy as np
+import pytest
+
+from oracles import arm_points
+from uavarm import llcp
+from uavarm.link import ArmLink, CommandRefused, LinkGarbled, LinkSilent, PortNotFound
+from uavarm.model import config
+from uavarm.sitl import Sitl
+
+SPEED = 2.0          # simulated seconds per real second
+TARGET = (60.0, 20.0, -120.0)
+
+
+@pytest.fixture
+def sitl():
+    s = Sitl(speed=SPEED)
+    thread = threading.Thread(target=s.run, daemon=True)
+    thread.start()
+    yield s
+    s.stop()
+    thread.join(timeout=5)
+
+
+def wait_for(sitl, arm, cond, sim_seconds):
+    """Heartbeats until cond(hb): that heartbeat, or None once the board's simulated clock
+    has run sim_seconds (real time may run slower on a busy machine)."""
+    end = sitl.board.time + sim_seconds
+    while sitl.board.time < end:
+        hb = arm.next_heartbeat()
+        if cond(hb):
+            return hb
+    return None
+
+
+def joints_deg(hb):
+    return np.degrees([hb["q1"], hb["q2"], hb["q3"]])
+
+
+def test_missing_port_is_a_clear_error():
+    with pytest.raises(PortNotFound, match="/dev/no-such-arm"):
+        ArmLink("/dev/no-such-arm")
+
+
+def pty_pair():
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    return master, os.ttyname(slave), slave
+
+
+def test_silent_and_garbled_links_are_told_apart():
+    master, path, slave = pty_pair()
+    try:
+        with ArmLink(path, silence=0.3) as arm:
+            with pytest.raises(LinkSilent, match="no heartbeat"):
+                arm.next_heartbeat()
+            os.write(master, b"hello, this is not LLCP " * 4 + b"b05ZZ")
+            with pytest.raises(LinkGarbled, match="no valid heartbeat"):
+                arm.next_heartbeat()
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_commands_through_the_pseudo_terminal(sitl):
+    m = config.load()
+    park = np.array(m.park_deg)
+    with ArmLink(sitl.device) as arm:
+        hb = arm.status()
+        assert hb["enabled"] == 0 and hb["engaged"] == 0 and hb["fault_names"] == []
+
+        with pytest.raises(CommandRefused, match="not enabled"):
+            arm.engage()
+
+        assert arm.enable()["enabled"] == 1
+        hb = wait_for(sitl, arm, lambda hb: np.abs(joints_deg(hb) - park).max() < 1.0, 4.0)
+        assert hb is not None, "the parked pose was not reached"
+
+        with pytest.raises(CommandRefused, match="unreachable"):
+            arm.set_position(500.0, 0.0, 0.0)
+        with pytest.raises(ValueError, match="finite"):
+            arm.set_position(math.nan, 0.0, 0.0)
+        arm.set_position(*TARGET)
+        assert arm.engage()["engaged"] == 1
+
+        def at_target(hb):
+            arm.keep_alive()
+            ee = arm_points(m, [hb["q1"], hb["q2"], hb["q3"]])[2]
+            return np.linalg.norm(ee - TARGET) < 1.0
+        assert wait_for(sitl, arm, at_target, 3.0) is not None, "the set position was not reached"
+
+        hb = arm.disable()
+        assert hb["enabled"] == 0 and hb["engaged"] == 0
+        assert not sitl.board.servo_power
+
+
+def test_link_cut_parks_the_arm_and_is_reported(sitl):
+    m = config.load()
+    with ArmLink(sitl.device) as arm:
+        arm.enable()
+        arm.engage()
+        # the drone stops sending: after link.silence_timeout the board parks and says why
+        hb = wait_for(sitl, arm, lambda hb: not hb["engaged"], 3 * m.link_silence_timeout)
+        assert hb is not None and "link_lost" in arm.status()["fault_names"]
+        assert arm.status()["enabled"] == 1
+
+
+def test_command_line_against_the_sitl(sitl):
+    run = lambda *a: subprocess.run([sys.executable, "-m", "uavarm.cli", "link", sitl.device, *a],
+                                    capture_output=True, text=True, timeout=30)
+    out = run("status")
+    assert out.returncode == 0 and "enabled 0" in out.stdout
+    out = run("enable")
+    assert out.returncode == 0 and "enabled 1" in out.stdout
+    out = run("goto", "500", "0", "0")
+    assert out.returncode == 1 and "unreachable" in out.stderr
+
+
+def test_sitl_speaks_llcp_only():
+    """What comes out of the pseudo-terminal is exactly the LLCP frames the board sent."""
+    s = Sitl(speed=SPEED)
+    thread = threading.Thread(target=s.run, daemon=True)
+    thread.start()
+    try:
+        fd = os.open(s.device, os.O_RDWR | os.O_NOCTTY)
+        data = b""
+        end = time.monotonic() + 1.2 / SPEED + 2.0
+        while time.monotonic() < end and data.count(b"b") < 2:
+            data += os.read(fd, 4096)
+        os.close(fd)
+    finally:
+        s.stop()
+        thread.join(timeout=5)
+    frames = llcp.Decoder().feed(data, 0.0)
+    assert len(frames) >= 2 and data.startswith(b"b") and len(data) == sum(llcp.frame_size(len(f)) for f in frames)
+
+
+def test_attitude_feed_keeps_an_engaged_arm_engaged(sitl):
+    m = config.load()
+    with ArmLink(sitl.device) as arm:
+        arm.enable()
+        arm.engage()
+        end, sent = sitl.board.time + 2 * m.link_silence_timeout, 0
+        while sitl.board.time < end:
+            arm.send_attitude(0.01, -0.02)
+            sent += 1
+            time.sleep(0.02 / SPEED)      # about 50 Hz of simulated time
+        hb = arm.status()
+        assert hb["engaged"] == 1 and "link_lost" not in hb["fault_names"]
+        assert sitl.board.app.drone_attitudes == sent     # every frame arrived whole

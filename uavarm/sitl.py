@@ -1,0 +1,104 @@
+"""The simulated board behind a pseudo-terminal: `uavarm sitl [SCENARIO]`.
+
+The firmware application (host build) runs in real time (or `speed` times faster) with the
+simulated servos and IMU; a pseudo-terminal stands in for the board's USB virtual COM port,
+so the link client, the ROS node or a terminal program cannot tell it from the real board:
+LLCP frames in, heartbeats every 0.5 s out.
+
+Scenarios (until the closed-loop simulator brings moving ones): `level` (default) and
+`tilt:ROLL,PITCH` in degrees, a board held still at that tilt.
+"""
+from __future__ import annotations
+
+import math
+import os
+import threading
+import time
+import tty
+
+from .board import Gravity, SimBoard
+
+# A simulated second is run in slices no longer than this, so input is never late by more.
+SLICE_S = 0.002
+
+
+def motion_of(scenario: str | None):
+    if scenario in (None, "", "level"):
+        return Gravity()
+    if scenario.startswith("tilt:"):
+        try:
+            roll, pitch = (math.radians(float(v)) for v in scenario[5:].split(","))
+        except ValueError:
+            raise ValueError(f"scenario {scenario!r}: expected tilt:ROLL,PITCH in degrees") from None
+        return Gravity(roll, pitch)
+    raise ValueError(f"unknown scenario {scenario!r}: use level or tilt:ROLL,PITCH")
+
+
+class Sitl:
+    """The board and its pseudo-terminal. `device` is the path to open; `run()` serves it until
+    `stop()` (from another thread) or Ctrl-C."""
+
+    def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None):
+        if not speed > 0:
+            raise ValueError(f"speed must be positive, got {speed}")
+        self.speed = speed
+        self.board = SimBoard(model, motion=motion_of(scenario), record=False)
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)          # bytes pass unchanged: no echo, no line editing
+        os.set_blocking(self._master, False)
+        self.device = os.ttyname(self._slave)
+        self._stop = threading.Event()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def close(self) -> None:
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def _read_input(self) -> None:
+        while True:
+            try:
+                data = os.read(self._master, 4096)
+            except (BlockingIOError, OSError):
+                return
+            if not data:
+                return
+            self.board.send_bytes(data)
+
+    def _write_output(self) -> None:
+        out = self.board.take_link_output()
+        while out:
+            try:
+                n = os.write(self._master, out)
+            except BlockingIOError:
+                return      # nobody is reading: heartbeats are dropped, as a full USB queue would
+            out = out[n:]
+
+    def run(self) -> None:
+        start = time.monotonic()
+        try:
+            while not self._stop.is_set():
+                self._read_input()
+                target_us = round((time.monotonic() - start) * self.speed * 1e6)
+                end_us = min(target_us, self.board.now_us + round(SLICE_S * 1e6))
+                self.board.run_until_us(end_us)
+                self._write_output()
+                if self.board.now_us >= target_us:
+                    time.sleep(0.0005)
+        finally:
+            self.close()
+
+
+def main(scenario: str | None, speed: float) -> int:
+    sitl = Sitl(scenario, speed=speed)
+    print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x); Ctrl-C stops",
+          flush=True)
+    try:
+        sitl.run()
+    except KeyboardInterrupt:
+        print("stopped")
+    return 0
