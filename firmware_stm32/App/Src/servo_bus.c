@@ -94,8 +94,9 @@ uint32_t sbus_tick_bus_time_us(const sbus_t *bus)
 
 static bool start(sbus_t *bus, size_t len, uint8_t reply, uint8_t id, uint8_t n_params)
 {
-    if (len == 0 || !bus->port->servo_send(bus->port->ctx, bus->tx, len)) {
-        return false;
+    if (len == 0 || (size_t)DXL_STATUS_MIN_LEN + n_params > sizeof bus->direct
+        || !bus->port->servo_send(bus->port->ctx, bus->tx, len)) {
+        return false;   /* (a reply longer than the direct check's buffer is never requested) */
     }
     bus->tx_len = (uint8_t)len;
     bus->reply = reply;
