@@ -28,3 +28,25 @@ def require_arm_toolchain():
         if os.environ.get("CI"):
             pytest.fail("arm-none-eabi-gcc missing in CI: .ci/run must install gcc-arm-none-eabi")
         pytest.skip("arm-none-eabi-gcc not installed (apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)")
+
+
+def require_ros():
+    """rospy (and roscore, roslaunch, genpy) for the ROS node tests: skipped on a developer
+    machine without ROS 1, never in CI."""
+    missing = None
+    try:
+        from uavarm.ros_node import import_ros
+        rospy = import_ros()
+        import genpy  # noqa: F401  (generates the node's msg and srv classes)
+        import nav_msgs.msg, sensor_msgs.msg, std_srvs.srv  # noqa: E401,F401
+    except ImportError as exc:
+        missing = exc.name or str(exc)
+    if missing is None:
+        missing = next((tool for tool in ("roscore", "roslaunch") if shutil.which(tool) is None), None)
+    if missing is not None:
+        packages = ("ros-core python3-rospy python3-std-srvs python3-geometry-msgs python3-sensor-msgs "
+                    "python3-nav-msgs python3-genpy")
+        if os.environ.get("CI"):
+            pytest.fail(f"ROS 1 ({missing}) missing in CI: .ci/run must install {packages}")
+        pytest.skip(f"ROS 1 not installed ({missing} missing): apt-get install {packages}")
+    return rospy

@@ -1,0 +1,363 @@
+"""The ROS 1 node (uavarm.ros_node) end to end: a real roscore on a free port, the simulated
+board behind a pseudo-terminal (SITL, in this process so its servo power and the frames it
+receives can be checked), the node started by `roslaunch uavarm_ros arm.launch`, and its
+services driven with rospy service proxies."""
+import math
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from conftest import ROOT, require_ros
+from oracles import arm_points
+from uavarm import llcp, messages
+from uavarm.model import config
+from uavarm.ros_node import ATTITUDE_TYPES, roll_pitch
+from uavarm.sitl import Sitl
+
+SPEED = 2.0                          # simulated seconds per real second
+TARGET_M = (0.060, 0.020, -0.120)
+ROS_PACKAGE_PATH = ROOT / "ros"
+pytestmark = pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning")   # rospy's own
+
+
+# ------------------------------------------------------------------ without ROS
+
+def test_roll_pitch_of_quaternions_match_scipy():
+    rng = np.random.default_rng(7)
+    rot = Rotation.random(2000, random_state=rng)
+    scale = rng.uniform(0.2, 5.0, 2000)              # not normalised: the node normalises
+    want = rot.as_euler("ZYX")                        # yaw, pitch, roll of Rz Ry Rx
+    got = np.array([roll_pitch(*(q * s)) for q, s in zip(rot.as_quat(), scale)])
+    assert np.abs(got[:, 0] - want[:, 2]).max() < 1e-9
+    assert np.abs(got[:, 1] - want[:, 1]).max() < 1e-9
+    with pytest.raises(ValueError, match="quaternion"):
+        roll_pitch(0.0, 0.0, 0.0, 0.0)
+    with pytest.raises(ValueError, match="quaternion"):
+        roll_pitch(math.nan, 0.0, 0.0, 1.0)
+
+
+# ------------------------------------------------------------------ fixtures
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def stop_group(proc: subprocess.Popen, timeout: float = 10.0) -> None:
+    """SIGINT the process group (roslaunch / roscore shut their children down), then kill."""
+    if proc.poll() is None:
+        try:
+            os.killpg(proc.pid, signal.SIGINT)
+            proc.wait(timeout=timeout)
+        except (ProcessLookupError, subprocess.TimeoutExpired):
+            pass
+    try:
+        os.killpg(proc.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    proc.wait(timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def ros(tmp_path_factory):
+    """A roscore on a free port and this process as a ROS node; yields (rospy, msg, srv, env)."""
+    rospy = require_ros()
+    import rosgraph
+    from uavarm.ros_node import load_interfaces
+    msg, srv = load_interfaces()                      # generated into build/ros by genpy
+    home = tmp_path_factory.mktemp("ros_home")
+    uri = f"http://127.0.0.1:{free_port()}"
+    env = dict(os.environ, ROS_MASTER_URI=uri, ROS_HOME=str(home), ROS_LOG_DIR=str(home / "log"),
+               ROS_IP="127.0.0.1", ROS_PACKAGE_PATH=str(ROS_PACKAGE_PATH), PYTHONUNBUFFERED="1",
+               # the node's `#!/usr/bin/env python3` is this interpreter, with uavarm installed
+               PATH=os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")]))
+    saved = {k: os.environ.get(k) for k in ("ROS_MASTER_URI", "ROS_HOME", "ROS_LOG_DIR", "ROS_IP")}
+    os.environ.update({k: env[k] for k in saved})
+    core_log = open(home / "roscore.out", "w")
+    core = subprocess.Popen(["roscore", "-p", uri.rsplit(":", 1)[1]], env=env, start_new_session=True,
+                            stdout=core_log, stderr=subprocess.STDOUT)
+    try:
+        master, end = rosgraph.Master("/uavarm_test", master_uri=uri), time.monotonic() + 30
+        while True:
+            try:
+                master.getPid()
+                break
+            except Exception:
+                if core.poll() is not None or time.monotonic() > end:
+                    pytest.fail(f"roscore did not start:\n{(home / 'roscore.out').read_text()}")
+                time.sleep(0.1)
+        rospy.init_node("uavarm_test", anonymous=True, disable_signals=True)
+        yield rospy, msg, srv, env
+    finally:
+        rospy.signal_shutdown("tests done")
+        stop_group(core)
+        core_log.close()
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+class Tap:
+    """Decodes what the simulated board receives, before the firmware does."""
+
+    def __init__(self, board):
+        self.decoder = llcp.Decoder(gap=0.1, expected_len=lambda i: messages.BY_ID[i].size
+                                    if i in messages.BY_ID else -1)
+        self.attitudes = []                           # (time.monotonic(), fields)
+        receive = board.send_bytes
+
+        def send_bytes(data):
+            for payload in self.decoder.feed(data, time.monotonic()):
+                name, fields = messages.decode(payload)
+                if name == "drone_attitude":
+                    self.attitudes.append((time.monotonic(), fields))
+            receive(data)
+        board.send_bytes = send_bytes
+
+
+class Arm:
+    """A SITL board, the node launched on its pseudo-terminal, proxies and the status topic."""
+
+    def __init__(self, ros, ns, log_path, **launch_args):
+        self.rospy, self.msg, self.srv, env = ros
+        rospy = self.rospy
+        self.ns, self.log_path = ns, log_path
+        self.sitl = Sitl(speed=SPEED)
+        self.tap = Tap(self.sitl.board)
+        self.thread = threading.Thread(target=self.sitl.run, daemon=True)
+        self.thread.start()
+        args = dict(port=self.sitl.device, baud=115200, uav_name=ns, **launch_args)
+        self.log_file = open(log_path, "w")
+        self.proc = subprocess.Popen(["roslaunch", "uavarm_ros", "arm.launch",
+                                      *(f"{k}:={v}" for k, v in args.items())],
+                                     env=env, start_new_session=True, stdout=self.log_file,
+                                     stderr=subprocess.STDOUT)
+        self.statuses = queue.Queue()
+        self.sub = rospy.Subscriber(f"/{ns}/arm/status", self.msg.ArmStatus, self.statuses.put)
+
+    def wait_ready(self):
+        from std_srvs.srv import SetBool
+        rospy, names = self.rospy, {"enable": SetBool, "engage": SetBool, "set_position": self.srv.SetPosition}
+        try:
+            for name in names:
+                rospy.wait_for_service(f"/{self.ns}/arm/{name}", timeout=60)
+        except rospy.ROSException:
+            raise AssertionError(f"the node's services did not come up:\n{self.log()}") from None
+        self.proxies = {name: rospy.ServiceProxy(f"/{self.ns}/arm/{name}", t) for name, t in names.items()}
+
+    def log(self) -> str:
+        return Path(self.log_path).read_text(errors="replace")
+
+    def call(self, name, *args):
+        """Call a service; statuses from before its answer are dropped."""
+        response = self.proxies[name](*args)
+        self.drain()
+        return response
+
+    def drain(self):
+        while True:
+            try:
+                self.statuses.get_nowait()
+            except queue.Empty:
+                return
+
+    def wait_status(self, cond, sim_seconds):
+        """The first status after now with cond(status), or None once the board's simulated
+        clock has run sim_seconds (with a generous real-time bound if it stalls)."""
+        end = self.sitl.board.time + sim_seconds
+        deadline = time.monotonic() + 4 * sim_seconds / SPEED + 10
+        while self.sitl.board.time < end and time.monotonic() < deadline:
+            try:
+                status = self.statuses.get(timeout=0.5)
+            except queue.Empty:
+                continue
+            if cond(status):
+                return status
+        return None
+
+    def close(self):
+        self.sub.unregister()
+        stop_group(self.proc)
+        self.log_file.close()
+        self.sitl.stop()
+        self.thread.join(timeout=5)
+
+
+@pytest.fixture
+def start_arm(ros, tmp_path):
+    arms = []
+
+    def start(**launch_args):
+        arm = Arm(ros, f"uav{len(arms)}_{os.getpid()}_{time.monotonic_ns() % 10**6}",
+                  tmp_path / f"node{len(arms)}.log", **launch_args)
+        arms.append(arm)                               # stopped at teardown even if not ready
+        arm.wait_ready()
+        return arm
+    yield start
+    for arm in arms:
+        arm.close()
+
+
+def joints(status):
+    return np.array(status.joints)
+
+
+# ------------------------------------------------------------------ with ROS
+
+def test_attitude_message_types():
+    """Each ~attitude_type resolves to its class and its orientation (Imu: none when the
+    orientation covariance says so, REP 145)."""
+    require_ros()
+    from uavarm.ros_node import attitude_class
+    for name in ATTITUDE_TYPES:
+        cls, orientation = attitude_class(name)
+        assert cls._type == name
+        m = cls()
+        assert orientation(m) is not None
+    imu_cls, orientation = attitude_class("sensor_msgs/Imu")
+    m = imu_cls()
+    m.orientation_covariance[0] = -1
+    assert orientation(m) is None
+    with pytest.raises(ValueError, match="attitude_type"):
+        attitude_class("std_msgs/String")
+
+
+def test_engage_refused_until_enabled_then_parked(start_arm):
+    m = config.load()
+    arm = start_arm()
+    status = arm.wait_status(lambda s: True, 2.0)
+    assert status is not None and not status.enabled and not status.engaged and status.fault_names == []
+
+    r = arm.call("engage", True)
+    assert not r.success and "not enabled" in r.message
+
+    r = arm.call("enable", True)
+    assert r.success and "enabled 1" in r.message
+    park = np.radians(m.park_deg)
+    status = arm.wait_status(lambda s: s.enabled and np.abs(joints(s) - park).max() < math.radians(0.5), 8.0)
+    assert status is not None, "the parked pose was not reached"
+    assert not status.engaged
+    print(f"parked: joints within {np.degrees(np.abs(joints(status) - park).max()):.3f} deg of park.q")
+
+
+def test_engage_reaches_the_set_position_and_disable_cuts_power(start_arm):
+    m = config.load()
+    arm = start_arm()                                  # keep-alive on, no attitude publisher
+    assert arm.call("enable", True).success
+    r = arm.call("set_position", *TARGET_M)
+    assert r.success, r.message
+    r = arm.call("engage", True)
+    assert r.success and "engaged 1" in r.message
+    target = np.array(TARGET_M) * 1000.0
+
+    def at_target(s):
+        return s.engaged and np.linalg.norm(arm_points(m, joints(s))[2] - target) < 1.0
+    status = arm.wait_status(at_target, 4.0)
+    assert status is not None, "the set position was not reached"
+    assert np.allclose(status.set_position, TARGET_M, atol=1e-6)
+    print(f"engaged: end effector {np.linalg.norm(arm_points(m, joints(status))[2] - target):.3f} mm from the target")
+
+    # the node keeps the engaged arm's link alive by itself (no attitude published)
+    held = arm.wait_status(lambda s: not s.engaged or "link_lost" in s.fault_names, 3 * m.link_silence_timeout)
+    assert held is None, f"the engaged arm parked: {held}"
+
+    r = arm.call("enable", False)
+    assert r.success
+    status = arm.wait_status(lambda s: True, 2.0)
+    assert not status.enabled and not status.engaged
+    assert not arm.sitl.board.servo_power
+
+
+def test_refusals_and_a_stopped_board_are_answered_with_reasons(start_arm):
+    m = config.load()
+    arm = start_arm()
+    assert arm.call("enable", True).success
+    park_point = arm_points(m, np.radians(m.park_deg))[2] / 1000.0
+
+    r = arm.call("set_position", 0.5, 0.0, 0.0)
+    assert not r.success and "unreachable" in r.message and "0.5000" in r.message
+    status = arm.wait_status(lambda s: True, 2.0)
+    assert status.unreachable and np.allclose(status.set_position, park_point, atol=1e-4)
+
+    r = arm.call("set_position", math.nan, 0.0, 0.0)
+    assert not r.success and "finite" in r.message
+
+    arm.sitl.stop()                                    # the board goes away
+    arm.thread.join(timeout=5)
+    r = arm.call("engage", True)
+    assert not r.success and ("serial link lost" in r.message or "no heartbeat" in r.message
+                              or "no link" in r.message), r.message
+    end = time.monotonic() + 20
+    while "serial link lost" not in arm.log() and time.monotonic() < end:
+        time.sleep(0.2)
+    assert "serial link lost" in arm.log()
+
+
+def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
+    """keep-alive off: only the forwarded attitude keeps the engaged arm engaged."""
+    from nav_msgs.msg import Odometry
+    m = config.load()
+    arm = start_arm(keep_alive="false")
+    rospy = arm.rospy
+    roll, pitch, yaw = 0.10, -0.05, 0.7
+    x, y, z, w = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_quat()
+    pub = rospy.Publisher(f"/{arm.ns}/odometry/odom_main", Odometry, queue_size=1)
+    odom = Odometry()
+    odom.pose.pose.orientation.x, odom.pose.pose.orientation.y = x, y
+    odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = z, w
+    publishing = threading.Event()
+    publishing.set()
+
+    def publish():
+        while publishing.is_set() and not rospy.is_shutdown():
+            odom.header.stamp = rospy.Time.now()
+            pub.publish(odom)
+            time.sleep(0.01)                             # about 100 Hz, like odom_main
+    feeder = threading.Thread(target=publish, daemon=True)
+    feeder.start()
+    try:
+        end = time.monotonic() + 30
+        while not arm.tap.attitudes and time.monotonic() < end:
+            time.sleep(0.05)
+        assert arm.tap.attitudes, f"no attitude reached the board:\n{arm.log()}"
+
+        assert arm.call("enable", True).success
+        assert arm.call("engage", True).success
+        t0, n0 = time.monotonic(), len(arm.tap.attitudes)
+        held = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)
+        assert held is None, f"the engaged arm parked while the attitude was forwarded: {held}"
+        window = [f for t, f in arm.tap.attitudes[n0:]]
+        rate = len(window) / (time.monotonic() - t0)
+    finally:
+        publishing.clear()
+        feeder.join(timeout=5)
+
+    assert rate >= 50.0, f"attitude forwarded at {rate:.1f} Hz"
+    rolls = np.array([f["roll"] for f in window])
+    pitches = np.array([f["pitch"] for f in window])
+    assert np.abs(rolls - roll).max() < 1e-6 and np.abs(pitches - pitch).max() < 1e-6
+    seqs = np.array([f["seq"] for f in window])
+    assert np.all(np.diff(seqs) % 65536 == 1), "attitude frames lost or reordered"
+
+    # the drone stops sending: the board parks after link.silence_timeout, the node reports it
+    status = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)
+    assert status is not None, "the arm did not park when the link fell silent"
+    assert "link_lost" in status.fault_names and status.enabled
+    end = time.monotonic() + 10
+    while "fault link_lost" not in arm.log() and time.monotonic() < end:
+        time.sleep(0.1)
+    assert "fault link_lost" in arm.log()
+    print(f"attitude forwarded at {rate:.1f} Hz ({len(window)} frames)")

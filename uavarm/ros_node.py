@@ -1,0 +1,443 @@
+"""ROS 1 node for the arm board: `ros/uavarm_ros/launch/arm.launch` starts it.
+
+Interface (private names, under the node: /<uav_name>/arm/...):
+
+- `~enable`, `~engage` (std_srvs/SetBool, as the MRS system uses) and `~set_position`
+  (uavarm_ros/SetPosition: x, y, z in metres, REP 103). Each answers once a heartbeat shows
+  the command taken (uavarm.link.ArmLink), or success false with the board's reason: "engage
+  refused: the arm is not enabled", "... refused: unreachable ...", "no heartbeat ...".
+- `~status` (uavarm_ros/ArmStatus): every heartbeat as received. A message of this package
+  rather than diagnostic_msgs key/value strings, so consumers get typed fields (flags, joints,
+  set position, counters) and the fault bits by name; primitive fields only, because Debian's
+  ROS packages ship no .msg sources to build a std_msgs/Header from. New fault bits (for
+  example link_lost when the arm parked after a silent link) are also logged as warnings.
+- the drone's attitude (`~attitude_topic`, `~attitude_type`: nav_msgs/Odometry,
+  sensor_msgs/Imu or geometry_msgs/QuaternionStamped): the orientation quaternion as Z-Y-X
+  roll and pitch, the latest one forwarded with ArmLink.send_attitude at `~attitude_rate` Hz
+  (default 100, at least 50) while it is fresher than `~attitude_timeout` s. The board counts
+  it as keep-alive (fusion comes later). With no fresh attitude and `~keep_alive` true, an
+  engaged arm is kept alive by repeating its set position every `~keep_alive_period` s.
+
+Parameters: `~port` (/dev/ttyACM0), `~baud` (115200), the attitude ones above,
+`~keep_alive` (true), `~keep_alive_period` (0.2 s; the board parks after 1 s of silence).
+
+One thread reads the port: the main loop polls heartbeats, publishes them and sends the
+attitude or keep-alive frames. Service threads send their command and wait for the loop to
+deliver the heartbeats that confirm it; every read and write goes through one lock. The port
+is reopened every second after an error (a board unplugged, a SITL stopped).
+
+msg/ and srv/ of the ROS package are turned into Python by Debian's genpy at start-up (and by
+the tests) into build/ros, never committed. This module imports rospy only inside functions,
+so the rest of uavarm works without ROS.
+"""
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import importlib
+import math
+import os
+import shutil
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from .link import ArmLink, CommandRefused, LinkError, LinkGarbled, LinkSilent, PortNotFound
+from .messages import FAULTS, fault_names
+
+PACKAGE = "uavarm_ros"
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_PACKAGE_DIR = ROOT / "ros" / PACKAGE
+DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
+FAULT_TEXT = dict(FAULTS)
+
+# ~attitude_type -> (module, class, the orientation quaternion of a message or None)
+ATTITUDE_TYPES = {
+    "nav_msgs/Odometry": ("nav_msgs.msg", "Odometry", lambda m: m.pose.pose.orientation),
+    # REP 145: orientation_covariance[0] == -1 means the IMU gives no orientation
+    "sensor_msgs/Imu": ("sensor_msgs.msg", "Imu",
+                        lambda m: None if m.orientation_covariance[0] == -1 else m.orientation),
+    "geometry_msgs/QuaternionStamped": ("geometry_msgs.msg", "QuaternionStamped", lambda m: m.quaternion),
+}
+
+
+# ------------------------------------------------------------------ ROS imports and interfaces
+
+def _debian_ros_path() -> bool:
+    """Debian's ROS packages are in the system interpreter's dist-packages; a virtual
+    environment made from another build of the same Python version (pyenv, for one) does not
+    see them. Append that folder (after every other) when the versions match."""
+    here = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    system = Path("/usr/bin/python3")
+    if not ((DEBIAN_DIST_PACKAGES / "rospy").is_dir() and system.exists() and system.resolve().name == here):
+        return False
+    if str(DEBIAN_DIST_PACKAGES) in sys.path:
+        return False
+    sys.path.append(str(DEBIAN_DIST_PACKAGES))
+    return True
+
+
+def import_ros():
+    """rospy (ImportError when ROS 1 is not installed)."""
+    try:
+        import rospy
+    except ImportError:
+        if not _debian_ros_path():
+            raise
+        import rospy
+    return rospy
+
+
+def build_interfaces(package_dir=DEFAULT_PACKAGE_DIR, build_dir=None) -> Path:
+    """Generate the Python classes of the package's msg/*.msg and srv/*.srv with genpy (what
+    Debian's genmsg_py.py and gensrv_py.py run) into build_dir/uavarm_ros; again only when the
+    sources changed. Returns build_dir, the folder to put on sys.path."""
+    import_ros()
+    from genpy.generate_initpy import write_modules
+    from genpy.generator import MsgGenerator, SrvGenerator
+
+    package_dir = Path(package_dir)
+    build_dir = Path(build_dir) if build_dir is not None else default_build_dir(package_dir)
+    kinds = (("msg", MsgGenerator(), sorted(package_dir.glob("msg/*.msg"))),
+             ("srv", SrvGenerator(), sorted(package_dir.glob("srv/*.srv"))))
+    digest = hashlib.sha256()
+    for _, _, files in kinds:
+        for f in files:
+            digest.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    digest = digest.hexdigest()
+    out = build_dir / PACKAGE
+    build_dir.mkdir(parents=True, exist_ok=True)
+    with open(build_dir / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)          # the node and the tests may start together
+        stamp = out / ".sources"
+        if stamp.exists() and stamp.read_text() == digest:
+            return build_dir
+        tmp = Path(tempfile.mkdtemp(prefix=".gen-", dir=build_dir))
+        search_path = {PACKAGE: [str(package_dir / "msg")]}
+        for kind, generator, files in kinds:
+            if not files:
+                continue
+            if generator.generate_messages(PACKAGE, [str(f) for f in files], str(tmp / kind), search_path):
+                shutil.rmtree(tmp, ignore_errors=True)
+                raise RuntimeError(f"genpy could not generate {package_dir / kind} (error above)")
+            write_modules(str(tmp / kind))
+        (tmp / "__init__.py").write_text("")
+        stamp_tmp = tmp / ".sources"
+        stamp_tmp.write_text(digest)
+        if out.exists():
+            shutil.rmtree(out)
+        tmp.rename(out)
+    return build_dir
+
+
+def default_build_dir(package_dir) -> Path:
+    """$UAVARM_ROS_BUILD, else build/ros of the repository holding ros/uavarm_ros."""
+    env = os.environ.get("UAVARM_ROS_BUILD")
+    return Path(env) if env else Path(package_dir).resolve().parents[1] / "build" / "ros"
+
+
+def load_interfaces(package_dir=DEFAULT_PACKAGE_DIR, build_dir=None):
+    """(uavarm_ros.msg, uavarm_ros.srv), generated if needed."""
+    path = str(build_interfaces(package_dir, build_dir))
+    if path not in sys.path:
+        sys.path.insert(0, path)
+    importlib.invalidate_caches()
+    return importlib.import_module(f"{PACKAGE}.msg"), importlib.import_module(f"{PACKAGE}.srv")
+
+
+def attitude_class(type_name: str):
+    """The message class for ~attitude_type and the function giving a message's quaternion."""
+    try:
+        module, cls, orientation = ATTITUDE_TYPES[type_name]
+    except KeyError:
+        raise ValueError(f"~attitude_type {type_name!r}: use one of {sorted(ATTITUDE_TYPES)}") from None
+    import_ros()
+    return getattr(importlib.import_module(module), cls), orientation
+
+
+def roll_pitch(x: float, y: float, z: float, w: float) -> tuple[float, float]:
+    """Roll and pitch (rad) of Z-Y-X Euler angles (R = Rz(yaw) Ry(pitch) Rx(roll)) of a
+    quaternion, normalised first; ValueError for a zero or non-finite one."""
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (math.isfinite(n) and n > 1e-9):
+        raise ValueError(f"not a rotation quaternion: ({x}, {y}, {z}, {w})")
+    x, y, z, w = x / n, y / n, z / n, w / n
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    return roll, pitch
+
+
+# ------------------------------------------------------------------ the shared link
+
+class SharedLink(ArmLink):
+    """ArmLink for several threads: only the loop reads the port (poll); command threads wait
+    for the heartbeats it delivers. One re-entrant lock covers every read and write."""
+
+    def __init__(self, port, baud: int = 115200, **kw):
+        super().__init__(port, baud, **kw)
+        self.cond = threading.Condition(threading.RLock())
+        self.count = 0            # heartbeats received so far
+        self.broken = None        # why the port failed, once it has
+        self.pending = None       # the set position of a set_position command in flight
+        self.last_sent = -math.inf
+
+    @property
+    def engaged(self) -> bool:
+        return bool(self.heartbeats) and bool(self.heartbeats[-1]["engaged"])
+
+    def send(self, name: str, **fields) -> None:
+        with self.cond:
+            if self.broken:
+                raise LinkError(f"serial link lost: {self.broken}")
+            if name == "set_position":
+                self.pending = (fields["x"], fields["y"], fields["z"])
+            super().send(name, **fields)
+            self.last_sent = time.monotonic()
+
+    def poll(self) -> list[dict]:
+        with self.cond:
+            new = super().poll()
+            if new:
+                self.count += len(new)
+                self.cond.notify_all()
+        return new
+
+    def next_heartbeat(self, timeout: float | None = None) -> dict:
+        timeout = self.silence if timeout is None else timeout
+        with self.cond:
+            start, start_bytes = self.count, self.bytes_received
+            arrived = self.cond.wait_for(lambda: self.count > start or self.broken, timeout)
+            if self.broken:
+                raise LinkError(f"serial link lost: {self.broken}")
+            if not arrived:
+                if self.bytes_received > start_bytes:
+                    raise LinkGarbled(f"{self.bytes_received - start_bytes} bytes in {timeout:.1f} s but no "
+                                      "valid heartbeat: wrong baud or device?")
+                raise LinkSilent(f"no heartbeat for {timeout:.1f} s: is the board powered and the port right?")
+            return self.heartbeats[len(self.heartbeats) - (self.count - start)]
+
+    def set_position(self, x: float, y: float, z: float) -> dict:
+        try:
+            return super().set_position(x, y, z)
+        finally:
+            with self.cond:
+                self.pending = None
+
+    def keep_alive(self) -> None:
+        """Repeat the set position: the one in flight if a set_position command waits for its
+        confirmation (so a keep-alive never undoes it), else the latest heartbeat's."""
+        with self.cond:
+            if self.pending is not None:
+                x, y, z = self.pending
+            elif self.heartbeats:
+                hb = self.heartbeats[-1]
+                x, y, z = hb["set_x"], hb["set_y"], hb["set_z"]
+            else:
+                return
+            ArmLink.send(self, "set_position", x=x, y=y, z=z)
+            self.last_sent = time.monotonic()
+
+    def fail(self, why: str) -> None:
+        with self.cond:
+            self.broken = why
+            self.cond.notify_all()
+            try:
+                self.close()
+            except Exception:
+                pass
+
+
+# ------------------------------------------------------------------ the node
+
+def describe(hb: dict) -> str:
+    return (f"enabled {hb['enabled']} engaged {hb['engaged']} set position "
+            f"({hb['set_x'] / 1000:.4f}, {hb['set_y'] / 1000:.4f}, {hb['set_z'] / 1000:.4f}) m "
+            f"faults {fault_names(hb['faults'])}")
+
+
+class ArmNode:
+    REOPEN_PERIOD = 1.0
+
+    def __init__(self, rospy, msg, srv):
+        import serial
+        from std_srvs.srv import SetBool, SetBoolResponse
+        self.rospy, self.msg, self.srv = rospy, msg, srv
+        self._serial_errors = (serial.SerialException, OSError)
+        self._SetBoolResponse = SetBoolResponse
+        self.port = rospy.get_param("~port", "/dev/ttyACM0")
+        self.baud = int(rospy.get_param("~baud", 115200))
+        self.attitude_rate = float(rospy.get_param("~attitude_rate", 100.0))
+        self.attitude_timeout = float(rospy.get_param("~attitude_timeout", 0.2))
+        self.keep_alive = bool(rospy.get_param("~keep_alive", True))
+        self.keep_alive_period = float(rospy.get_param("~keep_alive_period", 0.2))
+        if not self.attitude_rate >= 50:
+            raise ValueError(f"~attitude_rate must be at least 50 Hz, got {self.attitude_rate}")
+        topic = rospy.get_param("~attitude_topic", "odometry/odom_main")
+        att_type = rospy.get_param("~attitude_type", "nav_msgs/Odometry")
+        att_class, self._orientation = attitude_class(att_type)
+
+        self.link: SharedLink | None = None
+        self.link_error = "not opened yet"
+        self._reopen_at = 0.0
+        self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
+        self._attitude = None                     # (roll, pitch, stamp_us or None, received)
+        self._last_hb = None
+        self._last_hb_time = None
+        self._silent = False
+
+        self.status_pub = rospy.Publisher("~status", msg.ArmStatus, queue_size=10)
+        rospy.Subscriber(topic, att_class, self._on_attitude, queue_size=1)
+        self._open(time.monotonic())
+        rospy.Service("~enable", SetBool, self._on_enable)
+        rospy.Service("~engage", SetBool, self._on_engage)
+        rospy.Service("~set_position", srv.SetPosition, self._on_set_position)
+        rospy.loginfo("arm: board on %s, attitude from %s (%s) at %.0f Hz, keep-alive %s",
+                      self.port, rospy.resolve_name(topic), att_type, self.attitude_rate,
+                      "on" if self.keep_alive else "off")
+
+    # ---------------------------------------------------------------- the port
+
+    def _open(self, now: float) -> None:
+        try:
+            self.link = SharedLink(self.port, self.baud)
+        except PortNotFound as exc:
+            if self.link_error != str(exc):
+                self.rospy.logerr("arm: %s; retrying every %.0f s", exc, self.REOPEN_PERIOD)
+            self.link_error = str(exc)
+            self._reopen_at = now + self.REOPEN_PERIOD
+            return
+        self.link_error = None
+        self._last_hb_time, self._silent = now, False
+        self.rospy.loginfo("arm: %s open", self.port)
+
+    def _lose(self, exc, now: float) -> None:
+        why = f"{self.port}: {exc}"
+        self.rospy.logerr("arm: serial link lost (%s); reopening every %.0f s", why, self.REOPEN_PERIOD)
+        link, self.link, self.link_error = self.link, None, why
+        link.fail(why)
+        self._reopen_at = now + self.REOPEN_PERIOD
+
+    # ---------------------------------------------------------------- the loop
+
+    def spin(self) -> None:
+        period = 1.0 / self.attitude_rate
+        next_t = time.monotonic()
+        while not self.rospy.is_shutdown():
+            self.step(time.monotonic())
+            next_t += period
+            delay = next_t - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            else:
+                next_t = time.monotonic()          # late: skip, never burst
+        if self.link is not None:
+            self.link.fail("node shut down")
+
+    def step(self, now: float) -> None:
+        link = self.link
+        if link is None:
+            if now >= self._reopen_at:
+                self._open(now)
+            return
+        try:
+            for hb in link.poll():
+                self._on_heartbeat(hb, now)
+            self._check_silence(now)
+            att = self._attitude
+            if att is not None and now - att[3] <= self.attitude_timeout:
+                link.send_attitude(att[0], att[1], att[2])
+            elif link.engaged:
+                self.rospy.logwarn_throttle(5.0, "arm: engaged but no attitude on the attitude topic for "
+                                            f"{self.attitude_timeout} s"
+                                            + ("" if self.keep_alive else "; keep-alive off: the arm will park"))
+                if self.keep_alive and now - link.last_sent >= self.keep_alive_period:
+                    link.keep_alive()
+        except LinkError:
+            pass                                    # failed already (a service thread saw it)
+        except self._serial_errors as exc:
+            self._lose(exc, now)
+
+    def _check_silence(self, now: float) -> None:
+        if self._last_hb_time is not None and now - self._last_hb_time > self.link.silence and not self._silent:
+            self._silent = True
+            self.rospy.logerr("arm: no heartbeat from the board for %.1f s (powered? right port and baud?)",
+                              now - self._last_hb_time)
+
+    def _on_heartbeat(self, hb: dict, now: float) -> None:
+        rospy = self.rospy
+        if self._silent:
+            rospy.loginfo("arm: heartbeats back")
+        self._silent, self._last_hb_time = False, now
+        names = fault_names(hb["faults"])
+        before = set() if self._last_hb is None else set(fault_names(self._last_hb["faults"]))
+        for name in names:
+            if name not in before:
+                rospy.logwarn("arm: fault %s: %s", name, FAULT_TEXT[name])
+        self._last_hb = hb
+
+        m = self.msg.ArmStatus()
+        m.stamp = rospy.Time.now()
+        m.enabled, m.engaged, m.unreachable = bool(hb["enabled"]), bool(hb["engaged"]), bool(hb["unreachable"])
+        m.faults, m.fault_names = hb["faults"], names
+        m.servo_errors = [hb["servo1_error"], hb["servo2_error"], hb["servo3_error"]]
+        m.set_position = [hb["set_x"] / 1000.0, hb["set_y"] / 1000.0, hb["set_z"] / 1000.0]
+        m.joints = [hb["q1"], hb["q2"], hb["q3"]]
+        m.link_frames_ok, m.link_errors, m.servo_timeouts = (hb["link_frames_ok"], hb["link_errors"],
+                                                             hb["servo_timeouts"])
+        self.status_pub.publish(m)
+
+    def _on_attitude(self, message) -> None:
+        q = self._orientation(message)
+        if q is None:
+            self.rospy.logwarn_throttle(10.0, "arm: the attitude topic carries no orientation")
+            return
+        try:
+            roll, pitch = roll_pitch(q.x, q.y, q.z, q.w)
+        except ValueError as exc:
+            self.rospy.logwarn_throttle(10.0, f"arm: attitude ignored: {exc}")
+            return
+        stamp = message.header.stamp
+        stamp_us = stamp.to_nsec() // 1000 if not stamp.is_zero() else None
+        self._attitude = (roll, pitch, stamp_us, time.monotonic())
+
+    # ---------------------------------------------------------------- services
+
+    def _command(self, action) -> tuple[bool, str]:
+        with self.command_lock:
+            link = self.link
+            if link is None:
+                return False, f"no link to the board: {self.link_error}"
+            try:
+                return True, describe(action(link))
+            except (CommandRefused, LinkError, ValueError) as exc:
+                return False, str(exc)
+            except self._serial_errors as exc:
+                return False, f"serial link lost: {self.port}: {exc}"
+
+    def _on_enable(self, req):
+        return self._SetBoolResponse(*self._command(lambda link: link.enable(bool(req.data))))
+
+    def _on_engage(self, req):
+        return self._SetBoolResponse(*self._command(lambda link: link.engage(bool(req.data))))
+
+    def _on_set_position(self, req):
+        x, y, z = req.x, req.y, req.z
+        ok, text = self._command(lambda link: link.set_position(x * 1000.0, y * 1000.0, z * 1000.0))
+        if not ok:
+            text = f"target ({x:.4f}, {y:.4f}, {z:.4f}) m: {text} (board figures in mm)"
+        return self.srv.SetPositionResponse(ok, text)
+
+
+def main(argv=None, package_dir=DEFAULT_PACKAGE_DIR) -> int:
+    rospy = import_ros()
+    msg, srv = load_interfaces(package_dir)
+    rospy.init_node("arm", argv=argv)
+    try:
+        node = ArmNode(rospy, msg, srv)
+    except ValueError as exc:
+        rospy.logfatal(f"arm: {exc}")
+        return 2
+    node.spin()
+    return 0
