@@ -157,3 +157,16 @@ def test_attitude_feed_keeps_an_engaged_arm_engaged(sitl):
         hb = arm.status()
         assert hb["engaged"] == 1 and "link_lost" not in hb["fault_names"]
         assert sitl.board.app.drone_attitudes == sent     # every frame arrived whole
+
+
+@pytest.mark.parametrize("text, kind", [("level", "Gravity"), ("tilt:10,-5", "Gravity"), ("rock:10,5,0.5", "Rocking")])
+def test_scenarios_parse(text, kind):
+    from uavarm.sitl import motion_of
+    assert type(motion_of(text)).__name__ == kind
+
+
+@pytest.mark.parametrize("text", ["tilt:10", "rock:1,2", "spin:3", "tilt:a,b", "rock:10,10,0", "tilt:nan,0"])
+def test_bad_scenarios_are_refused(text):
+    from uavarm.sitl import motion_of
+    with pytest.raises(ValueError, match="scenario"):
+        motion_of(text)

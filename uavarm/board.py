@@ -15,8 +15,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from . import ax12_sim, firmware, llcp, messages
-from .model import config, servo as servo_map
+from .model import attitude, config, servo as servo_map
 from .mpu6050_sim import Mpu6050
 
 US = 1_000_000
@@ -52,25 +54,55 @@ def parse_instructions(data: bytes) -> list[tuple[int, int, bytes]]:
     return out
 
 
+def specific_force_up(roll: float, pitch: float):
+    """What an ideal accelerometer at rest reads in the base frame (g): "up" seen tilted."""
+    return (-math.sin(pitch), math.sin(roll) * math.cos(pitch), math.cos(roll) * math.cos(pitch))
+
+
 @dataclass
 class Gravity:
-    """A static board: the IMU sees 1 g "up" tilted by roll/pitch (rad), no rotation."""
+    """A static board tilted by roll/pitch (rad): the IMU sees 1 g "up", no rotation."""
     roll: float = 0.0
     pitch: float = 0.0
 
+    def attitude(self, t: float):
+        return self.roll, self.pitch
+
     def imu(self, t: float):
-        up = (-math.sin(self.pitch), math.sin(self.roll) * math.cos(self.pitch),
-              math.cos(self.roll) * math.cos(self.pitch))
-        return up, (0.0, 0.0, 0.0)
+        """(specific force in g, body rates in rad/s), in the base frame."""
+        return specific_force_up(self.roll, self.pitch), (0.0, 0.0, 0.0)
+
+
+@dataclass
+class Rocking:
+    """Bench tilting: roll and pitch swing sinusoidally (amplitudes in rad, frequency in Hz,
+    pitch a quarter period behind roll), about the arm's base, with no linear acceleration."""
+    roll_amp: float
+    pitch_amp: float = 0.0
+    freq: float = 0.5
+
+    def attitude(self, t: float):
+        w = 2 * math.pi * self.freq
+        return self.roll_amp * math.sin(w * t), self.pitch_amp * math.sin(w * t - math.pi / 2)
+
+    def imu(self, t: float):
+        w = 2 * math.pi * self.freq
+        roll, pitch = self.attitude(t)
+        roll_rate = self.roll_amp * w * math.cos(w * t)
+        pitch_rate = self.pitch_amp * w * math.cos(w * t - math.pi / 2)
+        # body rates of Z-Y-X Euler rates with no yaw: p = roll', q = cos(roll) pitch', r = -sin(roll) pitch'
+        gyro = (roll_rate, math.cos(roll) * pitch_rate, -math.sin(roll) * pitch_rate)
+        return specific_force_up(roll, pitch), gyro
 
 
 class SimBoard:
     """model: the model the firmware was generated from; servos: AX12 objects (default: one
-    per joint, at the bus's baud, resting at their centre); motion: an object whose
-    imu(t) gives (accel_g, gyro_rad_s) in the IMU axes (default: level and still);
-    start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
+    per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
+    and still), Rocking, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
-    the last heartbeats (long runs such as the SITL)."""
+    the last heartbeats (long runs such as the SITL). A motion gives the base frame's
+    attitude(t) and imu(t) in base axes; the board turns the latter into the IMU's axes
+    with the model's mounting rotation."""
 
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
                  poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True):
@@ -85,6 +117,7 @@ class SimBoard:
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo)
         self.bus.power(False)
         self.motion = motion or Gravity()
+        self._base_to_imu = np.array(attitude.mounting(m).T.tolist(), dtype=float)
         self.start_us = start_us
         self.poll_us = poll_us
         self.tick_us = round(US / m.sample_rate)
@@ -139,7 +172,7 @@ class SimBoard:
         if self.now_us >= self._next_tick:
             self._next_tick += self.tick_us
             accel, gyro = self.motion.imu(self.time)
-            self.imu.sample(accel, gyro)
+            self.imu.sample(self._base_to_imu @ accel, self._base_to_imu @ gyro)
             self.lib.app_request_tick(self.app)
         self._clock()
         self.lib.app_poll(self.app)

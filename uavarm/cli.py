@@ -79,7 +79,8 @@ def main(argv=None) -> int:
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
-    st.add_argument("scenario", nargs="?", default="level", help="level (default) or tilt:ROLL,PITCH (deg)")
+    st.add_argument("scenario", nargs="?", default="level",
+                    help="level (default), tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (bench tilting)")
     st.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second")
     args, rest = ap.parse_known_args(argv)
     if args.command == "codegen":

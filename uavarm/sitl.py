@@ -5,8 +5,8 @@ simulated servos and IMU; a pseudo-terminal stands in for the board's USB virtua
 so the link client, the ROS node or a terminal program cannot tell it from the real board:
 LLCP frames in, heartbeats every 0.5 s out.
 
-Scenarios (until the closed-loop simulator brings moving ones): `level` (default) and
-`tilt:ROLL,PITCH` in degrees, a board held still at that tilt.
+Scenarios: `level` (default), `tilt:ROLL,PITCH` (degrees, held still) and
+`rock:ROLL,PITCH,HZ` (bench tilting: sinusoidal roll and pitch of those amplitudes).
 """
 from __future__ import annotations
 
@@ -16,22 +16,31 @@ import threading
 import time
 import tty
 
-from .board import Gravity, SimBoard
+from .board import Gravity, Rocking, SimBoard
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
 SLICE_S = 0.002
 
 
+SCENARIOS = "level, tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (deg, deg, Hz)"
+
+
 def motion_of(scenario: str | None):
     if scenario in (None, "", "level"):
         return Gravity()
-    if scenario.startswith("tilt:"):
-        try:
-            roll, pitch = (math.radians(float(v)) for v in scenario[5:].split(","))
-        except ValueError:
-            raise ValueError(f"scenario {scenario!r}: expected tilt:ROLL,PITCH in degrees") from None
-        return Gravity(roll, pitch)
-    raise ValueError(f"unknown scenario {scenario!r}: use level or tilt:ROLL,PITCH")
+    kind, _, args = scenario.partition(":")
+    shapes = {"tilt": 2, "rock": 3}
+    try:
+        values = [float(v) for v in args.split(",")]
+        if kind not in shapes or len(values) != shapes[kind] or not all(map(math.isfinite, values)):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"scenario {scenario!r}: use {SCENARIOS}") from None
+    if kind == "tilt":
+        return Gravity(math.radians(values[0]), math.radians(values[1]))
+    if not 0 < values[2] <= 10:
+        raise ValueError(f"scenario {scenario!r}: rocking frequency must be in (0, 10] Hz")
+    return Rocking(math.radians(values[0]), math.radians(values[1]), values[2])
 
 
 class Sitl:
