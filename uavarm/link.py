@@ -10,7 +10,7 @@ Every command is confirmed by the heartbeats (sent every 0.5 s): the call return
 heartbeat shows the command took effect, raises CommandRefused when the board's flags say
 why it did not, and LinkSilent when no heartbeat comes at all. An engaged arm parks if the
 link is silent for the model's link.silence_timeout, so a drone keeps sending: `keep_alive()`
-repeats the current set position.
+repeats the current set position (only while no new target is being set).
 """
 from __future__ import annotations
 
@@ -22,7 +22,6 @@ from collections import deque
 from . import llcp, messages
 from .messages import fault_names
 
-HEARTBEAT_PERIOD = 0.5
 # a command is judged on the heartbeats that follow it: the first may predate it
 CONFIRM_HEARTBEATS = 2
 
@@ -57,10 +56,15 @@ def _expected_len(msg_id: int) -> int:
 
 
 class ArmLink:
-    """port: a device path (or a pyserial URL, or an open serial object for tests)."""
+    """port: a device path (or a pyserial URL, or an open serial object for tests); silence:
+    seconds without a heartbeat that count as a dead link (default: three heartbeat periods
+    of the model file)."""
 
-    def __init__(self, port, baud: int = 115200, *, silence: float = 3 * HEARTBEAT_PERIOD):
+    def __init__(self, port, baud: int = 115200, *, silence: float | None = None):
         import serial
+        if silence is None:
+            from .model import config
+            silence = 3 * config.load().heartbeat_period
         if isinstance(port, str):
             try:
                 self.serial = serial.serial_for_url(port, baudrate=baud, timeout=0)
