@@ -19,6 +19,9 @@ ACCEL_RANGES_G = {2: 0, 4: 1, 8: 2, 16: 3}             # AFS_SEL
 GYRO_RANGES_DPS = {250: 0, 500: 1, 1000: 2, 2000: 3}   # FS_SEL
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
 SPEED_RPM_MAX = 1023 * 0.111        # AX-12A Moving Speed register limit
+# Every length of the model (mm) is at most 10 m: the generated code is float32, and the
+# code generator's exact SymPy checks take minutes on lengths like 1e300.
+LENGTH_MAX_MM = 10_000.0
 
 
 class ModelError(ValueError):
@@ -156,8 +159,11 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         raise ModelError(f"{path}: cannot read the model file: {exc.strerror}") from None
     try:
         data = tomllib.loads(raw.decode("utf-8"))
-    except (UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+    except RecursionError:
+        raise ModelError(f"{path}: not valid TOML: arrays or tables nested too deeply") from None
+    except ValueError as exc:   # bad UTF-8 or TOML, or an integer of more than 4300 digits
         raise ModelError(f"{path}: not valid TOML: {exc}") from None
+    _check_integers(path, data)
     r = _Reader(path, data)
 
     limits = []
@@ -169,7 +175,7 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         limits.append(JointLimit(lo, hi))
 
     units_max = r.integer("servo.units_max", lo=1, hi=65535)
-    range_deg = r.number("servo.range_deg", positive=True, hi=360.0)
+    range_deg = r.number("servo.range_deg", lo=1.0, hi=360.0)   # (1e-300 degrees divides by zero)
     servos = []
     for name in JOINTS:
         servos.append(Servo(
@@ -182,7 +188,7 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
 
     sample_rate = r.number("imu.sample_rate", positive=True)
     divider = 1000.0 / sample_rate
-    if divider != round(divider) or not 1 <= divider <= 256:
+    if not 1 <= divider <= 256 or divider != round(divider):   # (a subnormal rate: divider inf)
         raise r.fail("imu.sample_rate", f"must be 1000 Hz / n for n in 1..256 (MPU-6050 SMPLRT_DIV), "
                                         f"got {sample_rate}")
     return_delay = r.integer("servo.return_delay_us", lo=0, hi=508)
@@ -201,14 +207,14 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
     model = Model(
         path=path,
         sha256=hashlib.sha256(raw).hexdigest(),
-        L1=r.number("geometry.L1", nonnegative=True),
-        L2=r.number("geometry.L2", positive=True),
-        L3=r.number("geometry.L3", positive=True),
+        L1=r.number("geometry.L1", nonnegative=True, hi=LENGTH_MAX_MM),
+        L2=r.number("geometry.L2", positive=True, hi=LENGTH_MAX_MM),
+        L3=r.number("geometry.L3", positive=True, hi=LENGTH_MAX_MM),
         limits=tuple(limits),
-        body_z=r.number("collision.body_z"),
+        body_z=r.number("collision.body_z", lo=-LENGTH_MAX_MM, hi=LENGTH_MAX_MM),
         leg_angles=r.number_list("collision.leg_angles", lo=-180.0, hi=180.0),
         leg_half_width=r.number("collision.leg_half_width", nonnegative=True, hi=90.0),
-        leg_distance=r.number("collision.leg_distance", positive=True),
+        leg_distance=r.number("collision.leg_distance", positive=True, hi=LENGTH_MAX_MM),
         servo_baud=r.integer("servo.baud", lo=7843, hi=1_000_000),
         servo_units_max=units_max,
         servo_range_deg=range_deg,
@@ -233,6 +239,21 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
     )
     _check_servo_travel(r, model)
     return model
+
+
+def _check_integers(path: Path, data: dict) -> None:
+    """TOML integers are 64-bit; tomllib takes any size, which float() and even str() can
+    refuse later. Rejected here, with the key."""
+    stack = [("", data)]
+    while stack:
+        key, node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend((f"{key}.{k}" if key else k, v) for k, v in node.items())
+        elif isinstance(node, list):
+            stack.extend((f"{key}[{i}]", v) for i, v in enumerate(node))
+        elif isinstance(node, int) and not -2**63 <= node < 2**63:
+            raise ModelError(f"{path}: {key}: integer outside TOML's 64-bit range "
+                             f"({node.bit_length()} bits)")
 
 
 def _three(r: _Reader, key: str) -> tuple[float, float, float]:

@@ -50,3 +50,33 @@ def require_ros():
             pytest.fail(f"ROS 1 ({missing}) missing in CI: .ci/run must install {packages}")
         pytest.skip(f"ROS 1 not installed ({missing} missing): apt-get install {packages}")
     return rospy
+
+
+def require_clang_fuzzer():
+    """clang with libFuzzer, ASan and UBSan, and atheris, for the fuzz harnesses (fuzz/):
+    skipped on a developer machine without them, never in CI."""
+    import subprocess
+    import tempfile
+    missing = None
+    cc = shutil.which("clang") or shutil.which("clang-14")
+    if cc is None:
+        missing = "clang"
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            src = Path(tmp) / "probe.c"
+            src.write_text("#include <stddef.h>\n#include <stdint.h>\n"
+                           "int LLVMFuzzerTestOneInput(const uint8_t *d, size_t n) { (void)d; return (int)(n & 0); }\n")
+            proc = subprocess.run([cc, "-fsanitize=fuzzer,address,undefined", str(src), "-o", str(Path(tmp) / "probe")],
+                                  capture_output=True)
+            if proc.returncode != 0:
+                missing = "libFuzzer/sanitizer runtimes (libclang-rt-14-dev)"
+    if missing is None:
+        try:
+            import atheris  # noqa: F401
+        except ImportError:
+            missing = "atheris (pip)"
+    if missing is not None:
+        how = "apt-get install clang libclang-rt-14-dev; pip install atheris"
+        if os.environ.get("CI"):
+            pytest.fail(f"{missing} missing in CI: {how}")
+        pytest.skip(f"{missing} not installed: {how}")

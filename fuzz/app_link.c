@@ -1,0 +1,598 @@
+/* libFuzzer harness: the whole firmware application (firmware_stm32/App + generated/) on a
+ * minimal in-memory board whose every input comes from the fuzzer: link bytes from the
+ * drone, servo-bus replies, MPU-6050 registers (so the sample path mpu_read -> mpu_scale ->
+ * filters -> estimator -> IK is fuzzed too) and time.
+ *
+ * Input: a header, then operations until the input ends (missing bytes read as 0).
+ *   header   start time (4 bytes, little-endian: the clock's wrap is reached too),
+ *            flags (1 byte, as in OP_FLAGS)
+ *   op byte  % 11 selects:
+ *   0 ADVANCE s      (s & 7) picks a step from STEP_US, (s >> 3) + 1 steps: each advances
+ *                    the clock, requests a tick at every 10 ms boundary (the timer
+ *                    interrupt) and runs app_poll()
+ *   1 FRAME k ...    one valid LLCP frame (checksum right) built from the input, then one
+ *                    app_poll(): k % 6 = enable(on), engage(on), set_position from 3 raw
+ *                    floats (12 bytes), set_position from 3 int8 x 1.5 mm, drone_attitude
+ *                    (14 bytes), or any payload (length byte, then the bytes)
+ *   2 LINK n ...     n raw link bytes, then app_poll()
+ *   3 SERVO n ...    n raw bytes received on the servo bus (noise, stray packets)
+ *   4 SAMPLE ...     14 bytes into the IMU's data registers ACCEL_XOUT_H ..
+ *   5 IMUREG r v     IMU register r & 127 = v (WHO_AM_I and the settings included)
+ *   6 FLAGS f        bit 0: IMU absent (NACK); 1: the simulated servos answer reads and
+ *                    (while their Status Return Level is 2) writes; 2: the master hears its
+ *                    own bytes (single-wire echo); 3: the link's transmit queue is full;
+ *                    4: replies corrupted (see CORRUPT); 5: IMU reads fail; 6: IMU writes
+ *                    fail (NACK); 7: IMU writes are acknowledged but lost
+ *   7 SERVOREG i a v register a % 50 of simulated servo i % 3 = v (present position, ...)
+ *   8 TICK           an extra tick request (interrupt), then app_poll()
+ *   9 CORRUPT k x    a corrupted reply has byte k % 16 XORed with x (x = 0: truncated
+ *                    after k bytes)
+ *  10 ERROR e        the simulated servos' status error byte becomes e & 0x7F
+ *
+ * Checked after every app_poll() and inside the port functions, besides ASan/UBSan:
+ *   - every servo-bus packet the application sends is one well-formed instruction packet,
+ *     sent only while the servo supply is on;
+ *   - every SYNC_WRITE holds goal positions inside the joint limits' unit ranges
+ *     (MODEL_SERVOn_CW_LIMIT .. CCW_LIMIT), a park or working speed, and is the command of
+ *     the application's joint vector q_cmd, which passes kin_check_joints() and maps to
+ *     exactly those units;
+ *   - the servo supply is on exactly while the application is enabled, engaged implies
+ *     enabled, and after a frame "enable 0" the supply is off when app_poll() returns;
+ *   - a valid frame always reaches the application (its good-frame counter moves);
+ *   - every heartbeat is one valid LLCP frame of a heartbeat message whose floats are all
+ *     finite; the commanded joints, the set position and the attitude stay finite;
+ *   - the fill levels of the buffers inside app_t (servo replies, link payload) stay within
+ *     them: AddressSanitizer does not see an overrun that stays inside a struct.
+ *
+ * With APP_LINK_TRACE set in the environment, each input ends with one line on stderr of
+ * how far it got (tests/test_fuzz.py checks that the seed corpus reaches the engaged,
+ * stabilising state).
+ */
+#include <math.h>
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "app.h"
+#include "dxl_protocol.h"
+#include "imu_mpu6050.h"
+#include "kinematics.h"
+#include "llcp.h"
+#include "messages.h"
+#include "model_params.h"
+#include "servo_map.h"
+
+#define CHECK(cond) do { if (!(cond)) { __builtin_trap(); } } while (0)
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+enum { OP_ADVANCE, OP_FRAME, OP_LINK, OP_SERVO, OP_SAMPLE, OP_IMUREG, OP_FLAGS, OP_SERVOREG,
+       OP_TICK, OP_CORRUPT, OP_ERROR, N_OPS };
+
+enum { F_IMU_ABSENT = 1, F_RESPOND = 2, F_ECHO = 4, F_LINK_FULL = 8, F_CORRUPT = 16,
+       F_IMU_READ_FAIL = 32, F_IMU_WRITE_FAIL = 64, F_IMU_WRITE_LOST = 128 };
+
+static const uint32_t STEP_US[8] = { 50u, 250u, 1000u, 2500u, 10000u, 100000u, 1000000u, 0x40000000u };
+#define MAX_POLLS 3000          /* bounds one input's run time */
+#define N_SERVOS 3
+#define N_REGS 50
+#define FIFO_CAP 1024
+
+static const uint8_t IDS[N_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
+static const uint16_t CW[N_SERVOS] = { MODEL_SERVO1_CW_LIMIT, MODEL_SERVO2_CW_LIMIT, MODEL_SERVO3_CW_LIMIT };
+static const uint16_t CCW[N_SERVOS] = { MODEL_SERVO1_CCW_LIMIT, MODEL_SERVO2_CCW_LIMIT, MODEL_SERVO3_CCW_LIMIT };
+
+typedef struct {
+    uint8_t data[FIFO_CAP];
+    size_t len;
+    size_t head;
+} fifo_t;
+
+typedef struct {
+    uint32_t now;
+    uint8_t flags;
+    fifo_t link_in;
+    fifo_t servo_in;
+    bool power;
+    bool tx_active;
+    uint32_t tx_end;
+    uint8_t regs[N_SERVOS][N_REGS];     /* the simulated AX-12A control tables */
+    uint8_t corrupt_at;
+    uint8_t corrupt_xor;
+    uint8_t reply_error;
+    uint8_t imu[128];
+    const app_t *app;
+    uint32_t sync_writes;
+    uint32_t engaged_sync_writes;
+    uint32_t heartbeats;
+} board_t;
+
+static board_t B;
+static app_t APP;
+
+/* ------------------------------------------------------------------ input */
+
+typedef struct {
+    const uint8_t *p;
+    size_t n;
+} input_t;
+
+static uint8_t take(input_t *in)
+{
+    if (in->n == 0) {
+        return 0;
+    }
+    in->n--;
+    return *in->p++;
+}
+
+static void take_bytes(input_t *in, uint8_t *out, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        out[i] = take(in);
+    }
+}
+
+/* ------------------------------------------------------------------ fifo */
+
+static size_t fifo_push(fifo_t *f, const uint8_t *buf, size_t n)
+{
+    if (f->head > 0) {
+        memmove(f->data, f->data + f->head, f->len);
+        f->head = 0;
+    }
+    if (n > FIFO_CAP - f->len) {
+        n = FIFO_CAP - f->len;
+    }
+    memcpy(f->data + f->len, buf, n);
+    f->len += n;
+    return n;
+}
+
+static size_t fifo_take(fifo_t *f, uint8_t *buf, size_t cap)
+{
+    size_t n = f->len < cap ? f->len : cap;
+    memcpy(buf, f->data + f->head, n);
+    f->head += n;
+    f->len -= n;
+    if (f->len == 0) {
+        f->head = 0;
+    }
+    return n;
+}
+
+/* ------------------------------------------------------------------ checks */
+
+static int hex_digit(uint8_t c)
+{
+    return c >= '0' && c <= '9' ? c - '0' : c >= 'A' && c <= 'F' ? c - 'A' + 10 : -1;
+}
+
+/* One heartbeat frame as the application wrote it to the link. Decoded here from the LLCP
+ * format (llcp.h), independently of the receiver under test in llcp_rx.c. */
+static void check_heartbeat(const uint8_t *buf, size_t n)
+{
+    uint8_t bytes[1 + MSG_HEARTBEAT_SIZE + 1];   /* length, payload, checksum */
+    uint8_t sum = 'b';
+    CHECK(n == LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE) && buf[0] == 'b');
+    for (size_t i = 0; i < sizeof bytes; ++i) {
+        const int hi = hex_digit(buf[1 + 2 * i]), lo = hex_digit(buf[2 + 2 * i]);
+        CHECK(hi >= 0 && lo >= 0);
+        bytes[i] = (uint8_t)(hi << 4 | lo);
+        if (i + 1 < sizeof bytes) {
+            sum = (uint8_t)(sum + buf[1 + 2 * i] + buf[2 + 2 * i]);
+        }
+    }
+    CHECK(bytes[0] == MSG_HEARTBEAT_SIZE && bytes[sizeof bytes - 1] == sum);
+    msg_heartbeat_t hb;
+    CHECK(msg_heartbeat_unpack(bytes + 1, MSG_HEARTBEAT_SIZE, &hb));
+    CHECK(isfinite(hb.set_x) && isfinite(hb.set_y) && isfinite(hb.set_z));
+    CHECK(isfinite(hb.q1) && isfinite(hb.q2) && isfinite(hb.q3));
+    CHECK(hb.enabled <= 1u && hb.engaged <= 1u && hb.unreachable <= 1u);
+    CHECK(!hb.engaged || hb.enabled);
+    CHECK(hb.faults < 128u);
+}
+
+/* One SYNC_WRITE of goal position and moving speed to the three servos. */
+static void check_sync_write(const uint8_t *pkt, size_t n)
+{
+    const app_t *app = B.app;
+    CHECK(n == 6u + 2u + N_SERVOS * 5u);
+    CHECK(pkt[2] == DXL_BROADCAST_ID && pkt[5] == DXL_AX_GOAL_POSITION && pkt[6] == 4u);
+    CHECK(app->enabled);
+    uint16_t goal[N_SERVOS], units[N_SERVOS];
+    for (int i = 0; i < N_SERVOS; ++i) {
+        const uint8_t *e = pkt + 7 + 5 * i;
+        CHECK(e[0] == IDS[i]);
+        goal[i] = (uint16_t)(e[1] | e[2] << 8);
+        uint16_t speed = (uint16_t)(e[3] | e[4] << 8);
+        CHECK(goal[i] >= CW[i] && goal[i] <= CCW[i]);
+        CHECK(speed == MODEL_PARK_SPEED || speed == MODEL_WORKING_SPEED);
+    }
+    CHECK(kin_check_joints(app->q_cmd) == KIN_OK);
+    CHECK(servo_joints_to_units(app->q_cmd, units));
+    CHECK(memcmp(units, goal, sizeof goal) == 0);
+    B.sync_writes++;
+    if (app->engaged) {
+        B.engaged_sync_writes++;
+    }
+}
+
+/* ------------------------------------------------------------------ simulated servos */
+
+static int servo_index(uint8_t id)
+{
+    for (int i = 0; i < N_SERVOS; ++i) {
+        if (IDS[i] == id) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+static void reply(int i, const uint8_t *params, size_t n)
+{
+    uint8_t pkt[6 + N_REGS];
+    pkt[0] = 0xFF;
+    pkt[1] = 0xFF;
+    pkt[2] = IDS[i];
+    pkt[3] = (uint8_t)(n + 2u);
+    pkt[4] = B.reply_error;
+    if (n > 0) {
+        memcpy(pkt + 5, params, n);
+    }
+    pkt[5 + n] = dxl_checksum(pkt + 2, n + 3u);
+    size_t len = n + 6u;
+    if (B.flags & F_CORRUPT) {
+        const size_t k = B.corrupt_at % 16u;
+        if (B.corrupt_xor == 0) {
+            len = k < len ? k : len;
+        } else if (k < len) {
+            pkt[k] ^= B.corrupt_xor;
+        }
+    }
+    (void)fifo_push(&B.servo_in, pkt, len);
+}
+
+/* The simulated AX-12A servos receive one instruction packet. */
+static void servos_receive(const uint8_t *pkt, size_t n)
+{
+    const uint8_t id = pkt[2], inst = pkt[4];
+    const uint8_t *params = pkt + 5;
+    const size_t n_params = n - 6u;
+    if (inst == DXL_INST_SYNC_WRITE) {
+        for (size_t e = 2; e + 5 <= n_params; e += 5) {
+            int i = servo_index(params[e]);
+            if (i >= 0) {
+                memcpy(&B.regs[i][30], params + e + 1, 4);
+                memcpy(&B.regs[i][36], params + e + 1, 2);   /* instant move */
+            }
+        }
+        return;
+    }
+    int i = servo_index(id);
+    if (i < 0) {
+        return;
+    }
+    if (inst == DXL_INST_WRITE && n_params >= 2) {
+        for (size_t k = 1; k < n_params && params[0] + k - 1 < N_REGS; ++k) {
+            B.regs[i][params[0] + k - 1] = params[k];
+        }
+        if ((B.flags & F_RESPOND) && B.regs[i][16] == 2) {
+            reply(i, NULL, 0);
+        }
+    } else if (inst == DXL_INST_READ && n_params == 2 && (B.flags & F_RESPOND) && B.regs[i][16] >= 1) {
+        uint8_t out[N_REGS] = {0};
+        const size_t len = params[1] < N_REGS ? params[1] : N_REGS;
+        for (size_t k = 0; k < len && params[0] + k < N_REGS; ++k) {
+            out[k] = B.regs[i][params[0] + k];
+        }
+        reply(i, out, len);
+    }
+}
+
+/* ------------------------------------------------------------------ port */
+
+static uint32_t p_time_us(void *ctx)
+{
+    (void)ctx;
+    return B.now;
+}
+
+static size_t p_link_read(void *ctx, uint8_t *buf, size_t cap)
+{
+    (void)ctx;
+    return fifo_take(&B.link_in, buf, cap);
+}
+
+static bool p_link_write(void *ctx, const uint8_t *buf, size_t n)
+{
+    (void)ctx;
+    CHECK(buf != NULL);
+    check_heartbeat(buf, n);
+    B.heartbeats++;
+    return !(B.flags & F_LINK_FULL);
+}
+
+static bool p_servo_busy(void *ctx)
+{
+    (void)ctx;
+    return B.tx_active && (int32_t)(B.tx_end - B.now) > 0;
+}
+
+static bool p_servo_send(void *ctx, const uint8_t *buf, size_t n)
+{
+    CHECK(B.power);
+    CHECK(n >= 6 && n <= DXL_MAX_PACKET_LEN);
+    CHECK(buf[0] == 0xFF && buf[1] == 0xFF && buf[3] == n - 4u);
+    CHECK(dxl_checksum(buf + 2, n - 3u) == buf[n - 1u]);
+    if (p_servo_busy(ctx)) {
+        return false;
+    }
+    const uint8_t inst = buf[4];
+    CHECK(inst == DXL_INST_WRITE || inst == DXL_INST_READ || inst == DXL_INST_SYNC_WRITE);
+    CHECK(inst == DXL_INST_SYNC_WRITE ? buf[2] == DXL_BROADCAST_ID : servo_index(buf[2]) >= 0);
+    if (inst == DXL_INST_SYNC_WRITE) {
+        check_sync_write(buf, n);
+    }
+    B.tx_active = true;
+    B.tx_end = B.now + (uint32_t)n * ((10u * 1000000u + MODEL_SERVO_BAUD - 1u) / MODEL_SERVO_BAUD);
+    if (B.flags & F_ECHO) {
+        (void)fifo_push(&B.servo_in, buf, n);
+    }
+    servos_receive(buf, n);
+    return true;
+}
+
+static size_t p_servo_read(void *ctx, uint8_t *buf, size_t cap)
+{
+    (void)ctx;
+    return fifo_take(&B.servo_in, buf, cap);
+}
+
+static void p_servo_power(void *ctx, bool on)
+{
+    (void)ctx;
+    if (on && !B.power) {
+        /* servos boot with their factory settings, shafts where they were */
+        for (int i = 0; i < N_SERVOS; ++i) {
+            B.regs[i][16] = 2;      /* Status Return Level: answer everything */
+            B.regs[i][24] = 0;      /* torque off */
+        }
+    }
+    B.power = on;
+}
+
+static void p_led(void *ctx, uint8_t index, bool on)
+{
+    (void)ctx;
+    (void)on;
+    CHECK(index < 2);
+}
+
+static bool p_imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t n)
+{
+    (void)ctx;
+    CHECK(buf != NULL && n >= 1 && n <= MPU_SAMPLE_BYTES);
+    if ((B.flags & (F_IMU_ABSENT | F_IMU_READ_FAIL)) || addr != MODEL_MPU_ADDRESS) {
+        return false;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        buf[i] = B.imu[(reg + i) & 127u];
+    }
+    return true;
+}
+
+static bool p_imu_write(void *ctx, uint8_t addr, uint8_t reg, uint8_t value)
+{
+    (void)ctx;
+    if ((B.flags & (F_IMU_ABSENT | F_IMU_WRITE_FAIL)) || addr != MODEL_MPU_ADDRESS) {
+        return false;
+    }
+    if (!(B.flags & F_IMU_WRITE_LOST)) {
+        B.imu[reg & 127u] = value;
+    }
+    return true;
+}
+
+static const port_t PORT = {
+    .ctx = &B, .time_us = p_time_us, .link_read = p_link_read, .link_write = p_link_write,
+    .servo_send = p_servo_send, .servo_busy = p_servo_busy, .servo_read = p_servo_read,
+    .servo_power = p_servo_power, .led = p_led, .imu_read = p_imu_read, .imu_write = p_imu_write,
+};
+
+/* ------------------------------------------------------------------ driving */
+
+static unsigned polls;
+static uint32_t next_tick;
+
+static void poll_and_check(void)
+{
+    app_poll(&APP);
+    polls++;
+    CHECK(B.power == APP.enabled);
+    CHECK(!APP.engaged || APP.enabled);
+    CHECK(isfinite(APP.q_cmd[0]) && isfinite(APP.q_cmd[1]) && isfinite(APP.q_cmd[2]));
+    CHECK(isfinite(APP.set_position[0]) && isfinite(APP.set_position[1]) && isfinite(APP.set_position[2]));
+    CHECK(isfinite(APP.stab.attitude.roll) && isfinite(APP.stab.attitude.pitch));
+    CHECK(APP.bus.state <= SBUS_FAILED);
+    /* buffers inside app_t, where AddressSanitizer does not look */
+    CHECK(APP.bus.parser.buf == APP.bus.rx_buf && APP.bus.parser.size <= sizeof APP.bus.rx_buf);
+    CHECK(APP.bus.parser.len <= APP.bus.parser.size);
+    CHECK(APP.bus.direct_len <= sizeof APP.bus.direct && APP.bus.tx_len <= sizeof APP.bus.tx);
+    CHECK(APP.link.count <= APP.link.len);
+}
+
+static void advance(uint32_t step)
+{
+    B.now += step;
+    if ((int32_t)(B.now - next_tick) >= 0) {
+        app_request_tick(&APP);
+        next_tick = step >= MODEL_TICK_US ? B.now + MODEL_TICK_US : next_tick + MODEL_TICK_US;
+    }
+    poll_and_check();
+}
+
+static void send_frame(const uint8_t *payload, size_t len)
+{
+    char frame[LLCP_FRAME_MAX];
+    const size_t n = llcp_encode(payload, len, frame, sizeof frame);
+    CHECK(n > 0);
+    CHECK(fifo_push(&B.link_in, (const uint8_t *)frame, n) == n);
+    const uint32_t ok_before = APP.link.frames_ok;
+    poll_and_check();
+    const int want = msg_expected_len(payload[0]);
+    if (want == (int)len) {
+        CHECK(APP.link.frames_ok == ok_before + 1u);
+        if (payload[0] == MSG_ENABLE_ID && payload[1] == 0) {
+            CHECK(!B.power && !APP.enabled && !APP.engaged);
+        }
+    }
+}
+
+static void op_frame(input_t *in)
+{
+    uint8_t payload[LLCP_MAX_PAYLOAD];
+    size_t len;
+    const uint8_t k = take(in) % 6u;
+    switch (k) {
+    case 0:
+    case 1: {
+        msg_enable_t m = { .on = take(in) };   /* (engage has the same layout) */
+        len = k == 0 ? msg_enable_pack(&m, payload, sizeof payload)
+                     : msg_engage_pack(&(msg_engage_t){ .on = m.on }, payload, sizeof payload);
+        break;
+    }
+    case 2: {
+        uint8_t raw[12];
+        msg_set_position_t m;
+        take_bytes(in, raw, sizeof raw);
+        memcpy(&m.x, raw, 4);
+        memcpy(&m.y, raw + 4, 4);
+        memcpy(&m.z, raw + 8, 4);
+        len = msg_set_position_pack(&m, payload, sizeof payload);
+        break;
+    }
+    case 3: {
+        msg_set_position_t m;
+        m.x = (float)(int8_t)take(in) * 1.5f;
+        m.y = (float)(int8_t)take(in) * 1.5f;
+        m.z = (float)(int8_t)take(in) * 1.5f;
+        len = msg_set_position_pack(&m, payload, sizeof payload);
+        break;
+    }
+    case 4:
+        payload[0] = MSG_DRONE_ATTITUDE_ID;
+        take_bytes(in, payload + 1, MSG_DRONE_ATTITUDE_SIZE - 1);
+        len = MSG_DRONE_ATTITUDE_SIZE;
+        break;
+    default:
+        len = 1u + take(in) % LLCP_MAX_PAYLOAD;
+        take_bytes(in, payload, len);
+        break;
+    }
+    CHECK(len > 0);
+    send_frame(payload, len);
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    input_t in = { data, size };
+    memset(&B, 0, sizeof B);
+    B.app = &APP;
+    uint8_t t[4];
+    take_bytes(&in, t, 4);
+    B.now = (uint32_t)t[0] | (uint32_t)t[1] << 8 | (uint32_t)t[2] << 16 | (uint32_t)t[3] << 24;
+    B.flags = take(&in);
+    /* an MPU-6050 at rest, level: +1 g on z (4 g range: 8192 LSB/g) */
+    B.imu[MPU_REG_WHO_AM_I] = MPU_WHO_AM_I;
+    B.imu[MPU_REG_ACCEL_XOUT_H + 4] = 0x20;
+    for (int i = 0; i < N_SERVOS; ++i) {
+        B.regs[i][3] = IDS[i];
+        B.regs[i][5] = 250;                  /* factory Return Delay Time */
+        B.regs[i][16] = 2;
+        B.regs[i][36] = 0x00;                /* present position 512 */
+        B.regs[i][37] = 0x02;
+        B.regs[i][42] = 120;                 /* 12.0 V */
+        B.regs[i][43] = 30;                  /* 30 deg C */
+    }
+    polls = 0;
+    next_tick = B.now + MODEL_TICK_US;
+    app_init(&APP, &PORT);
+    CHECK(!B.power && !APP.enabled);
+
+    while (in.n > 0 && polls < MAX_POLLS) {
+        const uint8_t op = take(&in) % N_OPS;
+        switch (op) {
+        case OP_ADVANCE: {
+            const uint8_t s = take(&in);
+            const unsigned count = (s >> 3) + 1u;
+            for (unsigned i = 0; i < count && polls < MAX_POLLS; ++i) {
+                advance(STEP_US[s & 7u]);
+            }
+            break;
+        }
+        case OP_FRAME:
+            op_frame(&in);
+            break;
+        case OP_LINK: {
+            uint8_t buf[256];
+            const size_t n = take(&in);
+            take_bytes(&in, buf, n);
+            (void)fifo_push(&B.link_in, buf, n);
+            poll_and_check();
+            break;
+        }
+        case OP_SERVO: {
+            uint8_t buf[256];
+            const size_t n = take(&in);
+            take_bytes(&in, buf, n);
+            (void)fifo_push(&B.servo_in, buf, n);
+            break;
+        }
+        case OP_SAMPLE:
+            take_bytes(&in, B.imu + MPU_REG_ACCEL_XOUT_H, MPU_SAMPLE_BYTES);
+            break;
+        case OP_IMUREG: {
+            const uint8_t r = take(&in);
+            B.imu[r & 127u] = take(&in);
+            break;
+        }
+        case OP_FLAGS:
+            B.flags = take(&in);
+            break;
+        case OP_SERVOREG: {
+            const uint8_t i = take(&in) % N_SERVOS;
+            const uint8_t a = take(&in) % N_REGS;
+            B.regs[i][a] = take(&in);
+            break;
+        }
+        case OP_TICK:
+            app_request_tick(&APP);
+            poll_and_check();
+            break;
+        case OP_CORRUPT:
+            B.corrupt_at = take(&in);
+            B.corrupt_xor = take(&in);
+            break;
+        default:
+            B.reply_error = take(&in) & 0x7Fu;
+            break;
+        }
+    }
+    static int trace = -1;
+    if (trace < 0) {
+        trace = getenv("APP_LINK_TRACE") != NULL;
+    }
+    if (trace) {
+        fprintf(stderr, "app_link: polls %u ticks %u sync_writes %u engaged_sync_writes %u "
+                "heartbeats %u bus_state %d enabled %d engaged %d imu_ok %d faults 0x%02x\n",
+                polls, (unsigned)APP.ticks_run, (unsigned)B.sync_writes,
+                (unsigned)B.engaged_sync_writes, (unsigned)B.heartbeats, (int)APP.bus.state,
+                (int)APP.enabled, (int)APP.engaged, (int)APP.imu_ok, (unsigned)app_faults(&APP));
+    }
+    return 0;
+}
