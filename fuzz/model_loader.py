@@ -84,7 +84,7 @@ def _value(fdp, old, depth: int = 0):
     if kind == 1:
         return fdp.ConsumeRegularFloat()
     if kind == 2:   # near the old value
-        base = float(old) if isinstance(old, (int, float)) and not isinstance(old, bool) else 1.0
+        base = old if isinstance(old, float) or (type(old) is int and abs(old) < 2**64) else 1.0
         return base * fdp.ConsumeFloatInRange(-2.0, 2.0)
     if kind == 3:
         return fdp.ConsumeIntInRange(-70000, 70000)
@@ -145,7 +145,10 @@ def edited_model(data: bytes) -> bytes:
     fdp = atheris.FuzzedDataProvider(data)
     doc = copy.deepcopy(BASE)
     for _ in range(fdp.ConsumeIntInRange(1, 3)):
-        path = fdp.PickValueInList(list(_paths(doc)))
+        paths = list(_paths(doc))
+        if not paths:
+            break
+        path = fdp.PickValueInList(paths)
         parent = doc
         for k in path[:-1]:
             parent = parent[k]
