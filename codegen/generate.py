@@ -146,7 +146,7 @@ def params_context(m: config.Model):
     ms = lambda s: round(s * 1000)
     lsb_per_g = 16384 >> config.ACCEL_RANGES_G[m.accel_range_g]
     return {
-        "park": [float32_literal(sp.rad(sp.nsimplify(d))) for d in m.park_deg],
+        "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
         "park_speed": servo.speed_units(m.park_speed_rpm),
         "working_speed": servo.speed_units(m.working_speed_rpm),
         "angle_limits": [servo.unit_range(m, j) for j in range(3)],
@@ -168,7 +168,7 @@ def params_context(m: config.Model):
 
 def check_park(m: config.Model) -> None:
     """The parked pose must pass the same checks the firmware applies to every command."""
-    q = [sp.rad(sp.nsimplify(d)) for d in m.park_deg]
+    q = [sp.rad(sp.nsimplify(d, rational=True)) for d in m.park_deg]
     subs = dict(zip(kinematics.JOINT_SYMBOLS, q))
     geo = kinematics.fk_geometry(m)
     for what, cond in (("outside the joint limits", kinematics.joint_limits_ok(m, kinematics.JOINT_SYMBOLS)),

@@ -227,6 +227,63 @@ def replay(name: str, inputs: list[Path] | None = None) -> Result:
     return r
 
 
+_REPLAY_MAIN = """\
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+int main(int argc, char **argv)
+{
+    static uint8_t buf[1 << 16];
+    for (int i = 1; i < argc; ++i) {
+        FILE *f = fopen(argv[i], "rb");
+        if (f == NULL) return 1;
+        size_t n = fread(buf, 1, sizeof buf, f);
+        fclose(f);
+        LLVMFuzzerTestOneInput(buf, n);
+    }
+    return 0;
+}
+"""
+
+
+def coverage(name: str) -> str:
+    """Line and branch coverage of the firmware sources reached by a C harness's corpus
+    (the committed seeds and what runs added): clang source-based coverage, no sanitizers."""
+    cc = compiler()
+    tools = {t: shutil.which(t) or shutil.which(f"{t}-14") for t in ("llvm-profdata", "llvm-cov")}
+    if cc is None or None in tools.values():
+        raise FuzzSetupError("coverage needs clang, llvm-profdata and llvm-cov (Debian llvm-14)")
+    out = OUT / "coverage" / name
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "main.c").write_text(_REPLAY_MAIN)
+    exe = out / name
+    targets = _c_sources(name)
+    rel = lambda p: str(p.relative_to(ROOT))
+    cmd = [cc, "-O0", "-g", "-fprofile-instr-generate", "-fcoverage-mapping", *cbuild.WARNING_FLAGS,
+           *[f"-I{rel(d)}" for d in INCLUDE_DIRS], rel(FUZZ / f"{name}.c"), *map(rel, targets),
+           str(out / "main.c"), "-lm", "-o", str(exe)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    if proc.returncode != 0:
+        raise FuzzSetupError(f"{' '.join(cmd)}\n{proc.stderr}")
+    files = [p for d in (OUT / "corpus" / name, SEEDS / name) if d.is_dir() for p in sorted(d.iterdir())]
+    raw = out / "default.profraw"
+    for i in range(0, len(files), 500):
+        subprocess.run([str(exe), *map(str, files[i:i + 500])], check=True, capture_output=True, cwd=ROOT,
+                       env={**os.environ, "LLVM_PROFILE_FILE": str(out / f"part{i}.profraw")})
+    parts = sorted(out.glob("part*.profraw"))
+    subprocess.run([tools["llvm-profdata"], "merge", "-o", str(out / "merged.profdata"), *map(str, parts)],
+                   check=True)
+    for p in parts + [raw]:
+        p.unlink(missing_ok=True)
+    # the protocol harnesses reach only the receiving functions of their files: per function
+    per_function = ["-show-functions"] if name in ("llcp_rx", "dxl_parser") else []
+    report = subprocess.run([tools["llvm-cov"], "report", str(exe), f"-instr-profile={out / 'merged.profdata'}",
+                             *per_function, *(str(t.relative_to(ROOT)) for t in targets)],
+                            check=True, capture_output=True, text=True, cwd=ROOT).stdout
+    return f"{name}: {len(files)} inputs\n{report}"
+
+
 def table(results: list[Result]) -> str:
     rows = [("harness", "inputs", "seconds", "exec/s", "cov", "ft", "corpus", "findings")]
     for r in results:
@@ -253,6 +310,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=1, help="harnesses run side by side")
     ap.add_argument("--workers", type=int, default=1, help="fuzzer processes per harness, side by side")
     ap.add_argument("--replay", action="store_true", help="run each committed seed once")
+    ap.add_argument("--coverage", action="store_true",
+                    help="line/branch coverage of the firmware sources by each C harness's corpus")
     args = ap.parse_args(argv)
     names = args.harness or list(HARNESSES)
     unknown = sorted(set(names) - set(HARNESSES))
@@ -265,6 +324,11 @@ def main(argv=None) -> int:
             build(name)
         elif not atheris_available():
             raise FuzzSetupError("atheris missing: pip install atheris")
+    if args.coverage:
+        for name in names:
+            if name in C_HARNESSES:
+                print(coverage(name))
+        return 0
     if args.replay:
         results = [replay(n) for n in names]
     else:

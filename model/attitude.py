@@ -56,7 +56,7 @@ def mounting(m: Model) -> sp.Matrix:
     the generated code; every other entry becomes a 40-digit number, since the float32 printer
     folds numbers but cannot print a constant such as sin(17 pi/180).
     """
-    r, p, y = (sp.pi * sp.nsimplify(a) / 180 for a in m.imu_mounting_rpy_deg)
+    r, p, y = (sp.pi * sp.nsimplify(a, rational=True) / 180 for a in m.imu_mounting_rpy_deg)
     return (rz(y) * ry(p) * rx(r)).applyfunc(_constant)
 
 
@@ -88,8 +88,8 @@ def euler_rates(m: Model) -> tuple[sp.Expr, sp.Expr]:
 
 def complementary_step(m: Model) -> tuple[sp.Expr, sp.Expr]:
     """The next (roll, pitch) from the previous (roll, pitch) and one IMU sample."""
-    w = sp.nsimplify(m.complementary_gyro_weight)
-    dt = 1 / sp.nsimplify(m.sample_rate)
+    w = sp.nsimplify(m.complementary_gyro_weight, rational=True)
+    dt = 1 / sp.nsimplify(m.sample_rate, rational=True)
     acc_roll, acc_pitch = tilt_from_accel(m)
     rate_roll, rate_pitch = euler_rates(m)
     return (w * (roll + rate_roll * dt) + (1 - w) * acc_roll,

@@ -36,13 +36,13 @@ def leg_planes(m: Model) -> tuple[sp.Expr, ...]:
     """Leg angles folded onto [0, 180) degrees, as exact angles in radians: the arm's
     vertical plane meets a leg whichever way it faces, so legs 180 deg apart block the
     same plane and are checked once."""
-    folded = sorted({sp.nsimplify(a) % 180 for a in m.leg_angles})
+    folded = sorted({sp.nsimplify(a, rational=True) % 180 for a in m.leg_angles})
     return tuple(sp.pi * a / 180 for a in folded)
 
 
 def near_leg(m: Model, g: Geometry) -> sp.Boolean:
     """The arm's plane is within leg_half_width of a leg: |cos(theta1 - a)| >= cos(hw)."""
-    cos_hw = sp.cos(sp.pi * sp.nsimplify(m.leg_half_width) / 180).evalf(30)
+    cos_hw = sp.cos(sp.pi * sp.nsimplify(m.leg_half_width, rational=True) / 180).evalf(30)
     near = []
     for a in leg_planes(m):
         c, s = sp.cos(a).evalf(30), sp.sin(a).evalf(30)

@@ -20,8 +20,10 @@ GYRO_RANGES_DPS = {250: 0, 500: 1, 1000: 2, 2000: 3}   # FS_SEL
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
 SPEED_RPM_MAX = 1023 * 0.111        # AX-12A Moving Speed register limit
 # Every length of the model (mm) is at most 10 m: the generated code is float32, and the
-# code generator's exact SymPy checks take minutes on lengths like 1e300.
+# code generator's exact SymPy checks take minutes on lengths like 1e300. A link is 0 or at
+# least 1 um long, for the same reason at the other end (1e-300).
 LENGTH_MAX_MM = 10_000.0
+LENGTH_MIN_MM = 0.001
 
 
 class ModelError(ValueError):
@@ -207,9 +209,9 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
     model = Model(
         path=path,
         sha256=hashlib.sha256(raw).hexdigest(),
-        L1=r.number("geometry.L1", nonnegative=True, hi=LENGTH_MAX_MM),
-        L2=r.number("geometry.L2", positive=True, hi=LENGTH_MAX_MM),
-        L3=r.number("geometry.L3", positive=True, hi=LENGTH_MAX_MM),
+        L1=_link(r, "geometry.L1", zero_allowed=True),
+        L2=_link(r, "geometry.L2"),
+        L3=_link(r, "geometry.L3"),
         limits=tuple(limits),
         body_z=r.number("collision.body_z", lo=-LENGTH_MAX_MM, hi=LENGTH_MAX_MM),
         leg_angles=r.number_list("collision.leg_angles", lo=-180.0, hi=180.0),
@@ -254,6 +256,13 @@ def _check_integers(path: Path, data: dict) -> None:
         elif isinstance(node, int) and not -2**63 <= node < 2**63:
             raise ModelError(f"{path}: {key}: integer outside TOML's 64-bit range "
                              f"({node.bit_length()} bits)")
+
+
+def _link(r: _Reader, key: str, zero_allowed: bool = False) -> float:
+    value = r.number(key, nonnegative=zero_allowed, positive=not zero_allowed, hi=LENGTH_MAX_MM)
+    if value < LENGTH_MIN_MM and not (zero_allowed and value == 0):
+        raise r.fail(key, f"must be {'0 or ' if zero_allowed else ''}at least {LENGTH_MIN_MM} mm, got {value}")
+    return value
 
 
 def _three(r: _Reader, key: str) -> tuple[float, float, float]:

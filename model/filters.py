@@ -34,7 +34,7 @@ def analog_sections(order: int):
 def design(f: Filter, sample_rate: float) -> tuple[Section, ...]:
     s, polys = analog_sections(f.order)
     # pre-warped bilinear map of the normalised analogue variable: s -> (1 - z^-1) / (K (1 + z^-1))
-    K = sp.tan(sp.pi * sp.nsimplify(f.cutoff) / sp.nsimplify(sample_rate))
+    K = sp.tan(sp.pi * sp.nsimplify(f.cutoff, rational=True) / sp.nsimplify(sample_rate, rational=True))
     sections = []
     for poly in polys:
         h = sp.together((1 / poly).subs(s, (1 - zi) / (K * (1 + zi))))

@@ -45,7 +45,7 @@ def dh_transform(theta, alpha, r, d) -> sp.Matrix:
 
 
 def dh_rows(m: Model):
-    L1, L2, L3 = (sp.nsimplify(v) for v in (m.L1, m.L2, m.L3))
+    L1, L2, L3 = (sp.nsimplify(v, rational=True) for v in (m.L1, m.L2, m.L3))
     return (
         (-q1, sp.pi / 2, 0, -L1),
         (-sp.pi / 2 + q2, 0, L2, 0),
@@ -79,7 +79,7 @@ class IkModel:
 
 
 def ik(m: Model) -> IkModel:
-    L1, L2, L3 = (sp.nsimplify(v) for v in (m.L1, m.L2, m.L3))
+    L1, L2, L3 = (sp.nsimplify(v, rational=True) for v in (m.L1, m.L2, m.L3))
     rho = sp.sqrt(x**2 + y**2)
     v = -(z + L1)                                  # depth of the target below the shoulder
     r2 = rho**2 + (z + L1)**2

@@ -9,7 +9,8 @@ from .config import Model
 
 
 def units_per_rad(m: Model) -> sp.Expr:
-    return sp.nsimplify(m.servo_units_max) / (sp.pi * sp.nsimplify(m.servo_range_deg) / 180)
+    units, degrees = (sp.nsimplify(v, rational=True) for v in (m.servo_units_max, m.servo_range_deg))
+    return units / (sp.pi * degrees / 180)
 
 
 def joint_to_units(m: Model, joint: int, angle) -> sp.Expr:
@@ -33,6 +34,6 @@ def speed_units(rpm: float) -> int:
 def unit_range(m: Model, joint: int) -> tuple[int, int]:
     """The servo positions that lie inside the joint's travel limits (whole units)."""
     lim = m.limits[joint]
-    ends = sorted(float(joint_to_units(m, joint, sp.rad(sp.nsimplify(d))))
+    ends = sorted(float(joint_to_units(m, joint, sp.rad(sp.nsimplify(d, rational=True))))
                   for d in (lim.min_deg, lim.max_deg))
     return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)

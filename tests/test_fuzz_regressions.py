@@ -1,17 +1,23 @@
 """Regression tests of what the fuzz harnesses found (fuzz/, README "Fuzzing"). Each test
-names the harness and what escaped before the fix. The same inputs are committed to the
-harness's seed corpus (fuzz/corpus/<harness>/regress-*), so the harness replays them too.
+names what escaped before the fix. The same inputs are committed to the harness's seed
+corpus (fuzz/corpus/<harness>/regress-*), so the harness replays them too.
 
-model_loader (uavarm.model.config.load): the loader must answer any bytes with a Model or a
-ModelError naming file and key; before the fixes these escaped as other exceptions or hung.
+All from model_loader: uavarm.model.config.load must answer any bytes with a Model or a
+ModelError naming file and key, and the code generator's park check must then end with a
+pass or a ModelError; before the fixes these escaped as other exceptions or ran for minutes.
+The C harnesses found nothing.
 """
 from __future__ import annotations
 
+import contextlib
+import signal
+
 import pytest
+import sympy as sp
 
 from conftest import ROOT
 from uavarm.codegen import generate
-from uavarm.model import config
+from uavarm.model import config, kinematics
 
 BASE = config.DEFAULT_MODEL.read_text()
 SEEDS = ROOT / "fuzz" / "corpus" / "model_loader"
@@ -78,6 +84,22 @@ def test_lengths_at_most_ten_metres(tmp_path, old, new, key):
     assert key in msg
 
 
+@pytest.mark.parametrize("old, new, key", [
+    ("L2 = 65.0", "L2 = 2.2250738585072014e-308", "geometry.L2"),   # exact park check: minutes
+    ("L1 = 40.0", "L1 = 5e-324", "geometry.L1"),
+    ("L3 = 73.5", "L3 = 0.0009", "geometry.L3"),
+])
+def test_links_at_least_a_micrometre(tmp_path, old, new, key):
+    msg = load_error(tmp_path, edited(old, new))
+    assert key in msg and "at least 0.001 mm" in msg
+
+
+def test_shoulder_offset_may_be_zero(tmp_path):
+    path = tmp_path / "arm.toml"
+    path.write_text(edited("L1 = 40.0", "L1 = 0.0"))
+    assert config.load(path).L1 == 0.0
+
+
 def test_ten_metre_arm_still_loads(tmp_path):
     path = tmp_path / "arm.toml"
     path.write_text(edited("L3 = 73.5", "L3 = 10000.0"))
@@ -86,12 +108,50 @@ def test_ten_metre_arm_still_loads(tmp_path):
     generate.check_park(model)   # (SymPy, exact: well under a second at this size)
 
 
+@contextlib.contextmanager
+def deadline(seconds: int):
+    """Fail instead of hanging (SIGALRM, Unix)."""
+    def expired(*_):
+        raise TimeoutError(f"still running after {seconds} s")
+    old = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, old)
+
+
+@pytest.mark.parametrize("value", ["40.28633809204152", "0.04028633809204152"])
+def test_model_numbers_stay_exact_rationals(tmp_path, value):
+    """A timeout of the harness: sp.nsimplify(40.28633809204152) guessed
+    5*2**(227/394)*3**(76/197)*5**(111/394)*7**(82/197), and the exact park check (and the
+    code generator) ran for minutes on it. The model's numbers are now taken as rationals of
+    their 15-digit decimals (nsimplify(..., rational=True)), which is what the committed
+    model's numbers already were, so the generated code did not change."""
+    path = tmp_path / "arm.toml"
+    path.write_text(edited("L1 = 40.0", f"L1 = {value}"))
+    model = config.load(path)
+    L1 = -kinematics.dh_rows(model)[0][3]
+    assert L1.is_Rational and abs(float(L1) / float(value) - 1) < 1e-14
+    with deadline(60):
+        generate.check_park(model)
+    assert sp.nsimplify(0.95, rational=True) == sp.Rational(19, 20)   # (nice decimals unchanged)
+
+
 def test_regression_inputs_are_in_the_seed_corpus(tmp_path):
     """The committed regress-* seeds: every one is refused with a ModelError."""
     seeds = sorted(SEEDS.glob("regress-*"))
-    assert len(seeds) >= 5
+    assert len(seeds) >= 7
     for seed in seeds:
         path = tmp_path / seed.name
         path.write_bytes(seed.read_bytes())
-        with pytest.raises(config.ModelError):
-            config.load(path)
+        try:
+            model = config.load(path)
+        except config.ModelError:
+            continue
+        with deadline(60):   # loads: then the park check must end, either way
+            try:
+                generate.check_park(model)
+            except config.ModelError:
+                pass
