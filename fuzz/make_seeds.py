@@ -23,6 +23,7 @@ from uavarm import ax12_sim, llcp, messages  # noqa: E402
 from uavarm.model import config  # noqa: E402
 
 CORPUS = Path(__file__).resolve().parent / "corpus"
+MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "app_link": 1024, "model_loader": 8192}   # fuzz/run.py
 
 
 def frame(name: str, **fields) -> bytes:
@@ -232,7 +233,7 @@ def write(name: str, seeds: list[bytes], named: dict[str, bytes] | None = None) 
     folder.mkdir(parents=True)
     files = {hashlib.sha1(seed).hexdigest(): seed for seed in seeds} | (named or {})
     for file_name, seed in files.items():
-        assert len(seed) <= 4096, (file_name, len(seed))   # the harnesses' -max_len
+        assert len(seed) <= MAX_LEN[name], (file_name, len(seed))   # the harness's -max_len
         (folder / file_name).write_bytes(seed)
     print(f"{folder.relative_to(ROOT)}: {len(files)} seeds, {sum(map(len, files.values()))} bytes")
 

@@ -87,6 +87,7 @@ class Model:
     gyro_range_dps: int
     dlpf_bandwidth: int
     imu_mounting_rpy_deg: tuple[float, float, float]
+    mount_offset: tuple[float, float, float]
     accel_filter: Filter
     gyro_filter: Filter
     complementary_gyro_weight: float
@@ -235,6 +236,7 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         gyro_range_dps=r.integer("imu.gyro_range_dps", choices=set(GYRO_RANGES_DPS)),
         dlpf_bandwidth=r.integer("imu.dlpf_bandwidth", choices=set(DLPF_BANDWIDTHS)),
         imu_mounting_rpy_deg=_three(r, "imu.mounting_rpy"),
+        mount_offset=_offset(r, "mount.offset"),
         accel_filter=filters[0],
         gyro_filter=filters[1],
         complementary_gyro_weight=r.number("estimator.complementary_gyro_weight", lo=0.0, hi=1.0),
@@ -269,6 +271,13 @@ def _three(r: _Reader, key: str) -> tuple[float, float, float]:
     values = r.number_list(key, lo=-180.0, hi=180.0)
     if len(values) != 3:
         raise r.fail(key, f"expected 3 angles in degrees, got {len(values)}")
+    return values
+
+
+def _offset(r: _Reader, key: str) -> tuple[float, float, float]:
+    values = r.number_list(key, lo=-LENGTH_MAX_MM, hi=LENGTH_MAX_MM)
+    if len(values) != 3:
+        raise r.fail(key, f"expected 3 lengths in mm (x, y, z), got {len(values)}")
     return values
 
 

@@ -105,6 +105,9 @@ def test_codegen_cli_reports_model_errors(tmp_path, capsys):
     ("sample_rate = 100.0", "sample_rate = 3.0", "imu.sample_rate", "1000 Hz / n"),
     ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 0.0]", "imu.mounting_rpy", "expected 3"),
     ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 190.0, 0.0]", "imu.mounting_rpy[1]", "within"),
+    ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, -80.0]", "mount.offset", "expected 3 lengths"),
+    ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, 0.0, -2e4]", "mount.offset[2]", "within"),
+    ("offset = [0.0, 0.0, -80.0]", "", "mount.offset", "missing"),
     ("return_delay_us = 20", "return_delay_us = 21", "servo.return_delay_us", "even"),
     ("return_delay_us = 20", "return_delay_us = 510", "servo.return_delay_us", "<= 508"),
     ("return_delay_us = 20", "return_delay_us = -2", "servo.return_delay_us", ">= 0"),
@@ -135,6 +138,7 @@ def test_new_keys_load(model):
     assert (model.imu_address, model.accel_range_g, model.gyro_range_dps, model.dlpf_bandwidth) == \
         (0x68, 4, 500, 44)
     assert model.imu_mounting_rpy_deg == (0.0, 0.0, 0.0)
+    assert model.mount_offset == (0.0, 0.0, -80.0)
 
 
 # Park poses and what the plain geometry of oracles.py says about them (verified below).
