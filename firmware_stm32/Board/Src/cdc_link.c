@@ -36,8 +36,19 @@ size_t cdc_link_read(cdc_link_t *link, uint8_t *buf, size_t cap)
     return byte_ring_take(&link->rx, buf, cap);
 }
 
+/* After a (re)connection, what was queued for the previous host is stale. */
+static void forget_stale(cdc_link_t *link)
+{
+    if (link->fresh_connection) {
+        link->fresh_connection = false;
+        byte_ring_clear(&link->tx);
+        link->transfer_len = 0u;
+    }
+}
+
 bool cdc_link_write(cdc_link_t *link, const uint8_t *buf, size_t n)
 {
+    forget_stale(link);
     if (!byte_ring_put_all(&link->tx, buf, n)) {
         link->frames_refused++;
         return false;
@@ -48,11 +59,7 @@ bool cdc_link_write(cdc_link_t *link, const uint8_t *buf, size_t n)
 
 void cdc_link_pump(cdc_link_t *link)
 {
-    if (link->fresh_connection) {
-        link->fresh_connection = false;
-        byte_ring_clear(&link->tx);     /* stale heartbeats from before the host listened */
-        link->transfer_len = 0u;
-    }
+    forget_stale(link);
     if (link->in_flight) return;
     if (link->transfer_len == 0u) {
         link->transfer_len = (uint16_t)byte_ring_take(&link->tx, link->transfer, sizeof link->transfer);
