@@ -296,3 +296,18 @@ def test_make_without_stm32cubef4_says_where_to_get_it(tmp_path):
     assert "STM32CUBE_F4" in proc.stdout and "github.com/STMicroelectronics/STM32CubeF4" in proc.stdout
     real_rules = (FW / "Makefile").read_text().split("# ---------------------------------------------------------------- without STM32CubeF4")[0]
     assert "-Ici/hal_decls" not in real_rules, "the CI declarations must never reach the real build"
+
+
+def test_bus_clocks_give_the_model_baud_and_fast_mode_i2c():
+    """RM0383 19.3.4: USARTDIV = f_PCLK / (16 x baud) at 16x oversampling, stored as a
+    12-bit mantissa and 4-bit fraction; USART1 is on APB2. I2C fast mode needs PCLK1 of
+    at least 4 MHz (RM0383 18.6.2, FREQ field)."""
+    k = ioc()
+    m = config.load()
+    pclk2 = int(k["RCC.APB2Freq_Value"])
+    usartdiv = Fraction(pclk2, 16 * m.servo_baud)
+    brr = round(usartdiv * 16)                      # what the HAL programs, in 1/16 steps
+    actual = Fraction(pclk2, brr)
+    assert abs(actual / m.servo_baud - 1) < Fraction(1, 100), "servo baud off by 1 % or more"
+    assert 1 <= brr >> 4 <= 0xFFF
+    assert int(k["RCC.APB1Freq_Value"]) >= 4 * MHZ

@@ -13,7 +13,6 @@ typedef char board_hse_value_matches_hal[(HSE_VALUE == BOARD_HSE_HZ) ? 1 : -1];
 
 #define SERVO_TX_MAX 128u          /* longest Dynamixel packet the application builds is ~40 bytes */
 #define SERVO_RX_SIZE 256u         /* several status packets; the application drains it each pass */
-#define I2C_RECOVER_AFTER 3u       /* consecutive bus timeouts before the I2C block is reset */
 
 typedef struct {
     /* servo bus */
@@ -28,7 +27,7 @@ typedef struct {
     uint32_t rx_errors;
     /* IMU */
     uint32_t i2c_errors;
-    uint32_t i2c_timeouts_in_row;
+    uint32_t i2c_recoveries;
     /* link */
     cdc_link_t link;
 } board_t;
@@ -177,27 +176,64 @@ static void led(void *ctx, uint8_t index, bool on)
 
 /* ------------------------------------------------------------------ IMU */
 
-/* A bus stuck busy or timing out (not a plain NACK) several times in a row: reset the
- * I2C block (DeInit + Init reconfigures it from hi2c1.Init). */
+/* A slave left mid-byte (e.g. the MCU reset during a read) holds SDA low and the I2C
+ * block sees the bus busy forever (and the HAL would first wait 25 ms for it to clear).
+ * Recovery as in the I2C specification (UM10204 3.1.16): up to nine SCL pulses until SDA
+ * is released, a STOP, then the I2C block is re-initialised (HAL_I2C_Init resets it).
+ * About 100 us, from the main loop only. */
+static void wait_us(uint32_t us)
+{
+    const uint32_t start = time_us(NULL);
+    while (time_us(NULL) - start < us) {
+    }
+}
+
+static void i2c_bus_recover(void)
+{
+    GPIO_InitTypeDef pins = {0};
+    board.i2c_recoveries++;
+    (void)HAL_I2C_DeInit(&hi2c1);
+    HAL_GPIO_WritePin(IMU_SCL_GPIO_Port, IMU_SCL_Pin | IMU_SDA_Pin, GPIO_PIN_SET);
+    pins.Pin = IMU_SCL_Pin | IMU_SDA_Pin;
+    pins.Mode = GPIO_MODE_OUTPUT_OD;
+    pins.Pull = GPIO_NOPULL;
+    pins.Speed = GPIO_SPEED_FREQ_LOW;
+    HAL_GPIO_Init(IMU_SCL_GPIO_Port, &pins);
+    for (int i = 0; i < 9 && HAL_GPIO_ReadPin(IMU_SDA_GPIO_Port, IMU_SDA_Pin) == GPIO_PIN_RESET; ++i) {
+        HAL_GPIO_WritePin(IMU_SCL_GPIO_Port, IMU_SCL_Pin, GPIO_PIN_RESET);
+        wait_us(5u);
+        HAL_GPIO_WritePin(IMU_SCL_GPIO_Port, IMU_SCL_Pin, GPIO_PIN_SET);
+        wait_us(5u);
+    }
+    HAL_GPIO_WritePin(IMU_SDA_GPIO_Port, IMU_SDA_Pin, GPIO_PIN_RESET);   /* STOP: SDA rises while SCL is high */
+    wait_us(5u);
+    HAL_GPIO_WritePin(IMU_SDA_GPIO_Port, IMU_SDA_Pin, GPIO_PIN_SET);
+    wait_us(5u);
+    (void)HAL_I2C_Init(&hi2c1);                                          /* MspInit: pins back to I2C1 */
+}
+
+/* Before a transfer: false (at once) if the bus is stuck, after trying to free it. */
+static bool i2c_bus_free(void)
+{
+    if (__HAL_I2C_GET_FLAG(&hi2c1, I2C_FLAG_BUSY) == RESET) return true;
+    i2c_bus_recover();
+    return __HAL_I2C_GET_FLAG(&hi2c1, I2C_FLAG_BUSY) == RESET;
+}
+
+/* A NACK (HAL_ERROR: no IMU at that address) is just a failure; a timeout or busy bus
+ * is also a reason to reset the bus. */
 static bool i2c_result(HAL_StatusTypeDef status)
 {
-    if (status == HAL_OK) {
-        board.i2c_timeouts_in_row = 0u;
-        return true;
-    }
+    if (status == HAL_OK) return true;
     board.i2c_errors++;
-    if (status != HAL_ERROR && ++board.i2c_timeouts_in_row >= I2C_RECOVER_AFTER) {
-        board.i2c_timeouts_in_row = 0u;
-        (void)HAL_I2C_DeInit(&hi2c1);
-        (void)HAL_I2C_Init(&hi2c1);
-    }
+    if (status != HAL_ERROR) i2c_bus_recover();
     return false;
 }
 
 static bool imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t n)
 {
     (void)ctx;
-    if (n == 0u || n > 0xFFFFu) return false;
+    if (n == 0u || n > 0xFFFFu || !i2c_bus_free()) return false;
     return i2c_result(HAL_I2C_Mem_Read(&hi2c1, (uint16_t)(addr << 1), reg, I2C_MEMADD_SIZE_8BIT,
                                        buf, (uint16_t)n, BOARD_I2C_TIMEOUT_MS));
 }
@@ -205,6 +241,7 @@ static bool imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t 
 static bool imu_write(void *ctx, uint8_t addr, uint8_t reg, uint8_t value)
 {
     (void)ctx;
+    if (!i2c_bus_free()) return false;
     return i2c_result(HAL_I2C_Mem_Write(&hi2c1, (uint16_t)(addr << 1), reg, I2C_MEMADD_SIZE_8BIT,
                                         &value, 1u, BOARD_I2C_TIMEOUT_MS));
 }

@@ -63,6 +63,11 @@ typedef struct {
 #define I2C_GENERALCALL_DISABLE 0x00000000U
 #define I2C_NOSTRETCH_DISABLE 0x00000000U
 #define I2C_MEMADD_SIZE_8BIT 0x00000001U
+#define I2C_FLAG_BUSY 0x00100002U
+#define I2C_FLAG_MASK 0x0000FFFFU
+#define __HAL_I2C_GET_FLAG(__HANDLE__, __FLAG__) ((((uint8_t)((__FLAG__) >> 16U)) == 0x01U) ? \
+    (((((__HANDLE__)->Instance->SR1) & ((__FLAG__) & I2C_FLAG_MASK)) == ((__FLAG__) & I2C_FLAG_MASK)) ? SET : RESET) : \
+    (((((__HANDLE__)->Instance->SR2) & ((__FLAG__) & I2C_FLAG_MASK)) == ((__FLAG__) & I2C_FLAG_MASK)) ? SET : RESET))
 
 HAL_StatusTypeDef HAL_I2C_Init(I2C_HandleTypeDef *hi2c);
 HAL_StatusTypeDef HAL_I2C_DeInit(I2C_HandleTypeDef *hi2c);
