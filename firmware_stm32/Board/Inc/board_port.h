@@ -27,6 +27,7 @@
 extern "C" {
 #endif
 
+/* cffi:begin */
 /* Starts the time base and servo-bus reception; returns the port for app_init(). Call
  * after the MX_*_Init() functions. */
 const port_t *board_port_start(void);
@@ -42,6 +43,7 @@ void board_link_transmitted(void);
 
 /* Servo supply off at once, without the HAL state machine: for Error_Handler and faults. */
 void board_servo_power_off(void);
+/* cffi:end */
 
 #ifdef __cplusplus
 }
