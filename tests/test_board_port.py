@@ -121,6 +121,17 @@ def test_reception_lost_in_the_interrupt_is_rearmed_by_the_next_read(board):
     assert read_servo(ffi, port) == b"\x33"
 
 
+def test_a_receiver_switch_refused_in_the_interrupt_is_retried_by_the_main_loop(board):
+    ffi, lib, port = board
+    assert send(ffi, port, b"\x01\x02")
+    lib.fake.refuse_enable_receiver = 1                      # the handle was locked at TC
+    lib.fake_uart_tx_complete()
+    assert lib.fake.transmitter_on == 1
+    lib.fake.refuse_enable_receiver = 0
+    assert not port.servo_busy(port.ctx)
+    assert lib.fake.transmitter_on == 0 and lib.fake_uart_rx_byte(0x7E)
+
+
 def test_an_overrun_rearms_reception_at_once(board):
     ffi, lib, port = board
     lib.fake_uart_overrun()

@@ -119,6 +119,7 @@ HAL_StatusTypeDef HAL_HalfDuplex_EnableTransmitter(UART_HandleTypeDef *huart)
 HAL_StatusTypeDef HAL_HalfDuplex_EnableReceiver(UART_HandleTypeDef *huart)
 {
     (void)huart;
+    if (fake.refuse_enable_receiver) return HAL_BUSY;
     fake.transmitter_on = 0;
     return HAL_OK;
 }

@@ -20,6 +20,7 @@ typedef struct {
     int transmitter_on;              /* 1 after EnableTransmitter, 0 after EnableReceiver */
     uint32_t receive_arms;
     int refuse_receive_arm;          /* Receive_IT answers HAL_BUSY (e.g. handle locked) */
+    int refuse_enable_receiver;      /* EnableReceiver answers HAL_BUSY (handle locked) */
     uint32_t aborts;
     /* GPIO: output and input levels, [port index A=0..H=7] bit = pin */
     uint16_t odr[8];

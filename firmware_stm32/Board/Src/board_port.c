@@ -18,6 +18,7 @@ typedef struct {
     /* servo bus */
     uint8_t tx[SERVO_TX_MAX];
     volatile bool tx_busy;         /* set by servo_send, cleared by the TC interrupt or the timeout */
+    volatile bool release_pending; /* the TC interrupt found the handle locked: retry from the main loop */
     uint32_t tx_start_us;
     uint32_t tx_limit_us;
     uint32_t tx_timeouts;
@@ -53,12 +54,13 @@ static void servo_rx_arm(void)
 
 static void servo_release_line(void)
 {
-    (void)HAL_HalfDuplex_EnableReceiver(&huart1);
+    board.release_pending = HAL_HalfDuplex_EnableReceiver(&huart1) != HAL_OK;
     board.tx_busy = false;
 }
 
 static bool servo_busy(void *ctx)
 {
+    if (board.release_pending) servo_release_line();
     if (board.tx_busy && time_us(ctx) - board.tx_start_us > board.tx_limit_us) {
         (void)HAL_UART_AbortTransmit(&huart1);
         servo_release_line();
