@@ -71,6 +71,7 @@ class Run:
     out_of_reach_ticks: int = 0
     link_messages: int = 0
     faults: list = field(default_factory=list)
+    last_heartbeat: dict = field(default_factory=dict)
 
     def metrics(self) -> dict:
         e = np.linalg.norm(self.error_mm[self.scored], axis=1)
@@ -226,4 +227,4 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     err = ee_error(model, q, true_att[:, 0], true_att[:, 1], scenario.target)
     t = np.array(rec_t) - st.engage_at
     return Run(scenario.name, seed, label, t, err, true_att, np.array(rec_est), t >= st.settle,
-               flight, out_of_reach, n_link, sorted(faults))
+               flight, out_of_reach, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {})

@@ -143,8 +143,11 @@ def build_variants(estimators, sets) -> dict[str, dict]:
     out = {}
     for est in estimators:
         preset = None if est == "model" else est
-        changes = variants.edits(preset, sets)
-        variants.build(changes)
+        try:
+            changes = variants.edits(preset, sets)
+            variants.build(changes)
+        except variants.VariantError as exc:
+            raise variants.VariantError(f"estimator {est}: {exc}") from None
         out[est] = changes
     return out
 
@@ -208,8 +211,7 @@ def sim_command(args) -> int:
         scenario = scenarios.load(args.scenario)
         if args.imu:
             scenario = replace(scenario, imu_profile=args.imu)
-        changes = variants.edits(args.estimator, args.sets)
-        variants.build(changes)
+        changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
     except (variants.VariantError, scenarios.ScenarioError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
