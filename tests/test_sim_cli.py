@@ -31,6 +31,15 @@ def test_sim_refuses_bad_input_with_a_reason(argv, msg, capsys):
     assert msg in capsys.readouterr().err
 
 
+def test_exported_flight_log_replays(tmp_path, capsys):
+    log = tmp_path / "flight.csv"
+    assert cli.main(["sim", "hover", "--seconds", "1", "--settle", "1", "--plots", "", "--export-log", str(log)]) == 0
+    (tmp_path / "replay.toml").write_text('kind = "replay"\n[motion]\ncsv = "flight.csv"\n')
+    capsys.readouterr()
+    assert cli.main(["sim", str(tmp_path / "replay.toml"), "--seconds", "1", "--settle", "1", "--plots", ""]) == 0
+    assert "replay" in capsys.readouterr().out
+
+
 def test_sim_rejects_nonsense_durations(capsys):
     with pytest.raises(SystemExit):
         cli.main(["sim", "bench", "--seconds", "0"])

@@ -100,6 +100,8 @@ def main(argv=None) -> int:
     sm.add_argument("--poll-us", type=int, default=250, help="simulated main-loop period")
     sm.add_argument("--jobs", type=int, default=1, help="seeds run in parallel")
     sm.add_argument("--plots", default="build/sim-plots", help="folder for the PNG plots ('' for none)")
+    sm.add_argument("--export-log", default=None, metavar="CSV",
+                    help="also write the first seed's drone motion as a flight log (the replay format)")
     ws = sub.add_parser("workspace", help="plot the arm's reachable region (side and top views)")
     ws.add_argument("--model", default=None, help="model file (default model/manipulator.toml)")
     ws.add_argument("--out", default="build/workspace.png")

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing
+import re
 import sys
 import time
 from dataclasses import dataclass, replace
@@ -97,7 +98,7 @@ def plot_run(run: sim.Run, out_dir: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     out_dir.mkdir(parents=True, exist_ok=True)
-    stem = f"{run.scenario}-{run.label}-seed{run.seed}".replace(" ", "_").replace("/", "_")
+    stem = re.sub(r"[^A-Za-z0-9._=-]+", "_", f"{run.scenario}-{run.label}-seed{run.seed}").strip("_")
     paths = []
     fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     for i, name in enumerate("xyz"):
@@ -234,6 +235,10 @@ def sim_command(args) -> int:
           f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}; scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))
+    if getattr(args, "export_log", None):
+        scenarios.write_csv(results[0][0].flight, Path(args.export_log))
+        print(f"wrote {args.export_log} (replay it with a scenario file: kind = \"replay\", "
+              f"[motion] csv = ...)")
     if args.plots:
         for r, _ in results:
             for p in plot_run(r, Path(args.plots)):
