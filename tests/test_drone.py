@@ -132,3 +132,16 @@ def test_resampled_log_reproduces_the_flight():
     assert np.degrees(np.abs(g.roll - f.roll)).max() < 0.01
     assert np.abs(g.omega - f.omega)[100:-100].max() < math.radians(0.5)
     assert np.abs(g.acc - f.acc).max() < 0.05
+
+
+def test_preflight_is_still_and_level_then_enters_the_flight_smoothly():
+    f = drone.hover(10.0, np.random.default_rng(8))
+    g = drone.with_preflight(f, 3.0, ramp_s=2.0)
+    n = round(3.0 * drone.RATE)
+    assert len(g.t) == n + len(f.t) and g.t[n] == pytest.approx(3.0)
+    motion = drone.FlightMotion(g, (0.0, 0.0, -80.0))
+    for t in (0.1, 1.5, 2.9):
+        acc, gyro = motion.imu(t)
+        assert np.allclose(acc, [0, 0, 1], atol=1e-9) and np.allclose(gyro, 0, atol=1e-9)
+    assert np.abs(np.diff(g.roll)).max() < math.radians(0.1)           # no jump at take-off
+    assert np.allclose(g.roll[n + 2000:], f.roll[2000:]) and np.allclose(g.acc[n + 2000:], f.acc[2000:])

@@ -14,7 +14,7 @@ from uavarm import drone, scenarios, sim, sim_report, variants
 from uavarm.model import config
 
 MODEL = config.load()
-SHORT = sim.Settings(seconds=3.0, settle=2.0)
+SHORT = sim.Settings(seconds=3.0, settle=2.0, preflight=2.0)
 
 
 def dh(theta, alpha, r, d):
@@ -157,7 +157,8 @@ def test_a_constant_tilt_with_an_ideal_imu_scores_the_servo_resolution(tmp_path)
     remains is the servos' rounding and dead band, a unit or two at ~140 mm (~1 mm)."""
     (tmp_path / "log.csv").write_text("t,roll,pitch,ax,ay,az\n0,12,-7,0,0,0\n30,12,-7,0,0,0\n")
     (tmp_path / "s.toml").write_text('kind = "replay"\n[motion]\ncsv = "log.csv"\n[imu]\nprofile = "ideal"\n')
-    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0]})
+    no_link = sim.Settings(seconds=3.0, settle=2.0, preflight=2.0, drone_attitude=False)
+    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0]}, settings=no_link)
     m = run.metrics()
     assert m["max"] < 1.5 and m["att_max"] < 0.05, m
     assert not run.faults and run.out_of_reach_ticks == 0
@@ -183,15 +184,16 @@ def test_without_the_offset_bench_tilting_is_a_few_millimetres():
 
 def test_the_link_attitude_reaches_the_firmware():
     s = scenarios.load("hover")
-    run = sim.simulate(s, variants.build({}), settings=sim.Settings(seconds=2.0, settle=1.0, drone_attitude=True))
+    st = sim.Settings(seconds=2.0, settle=1.0, preflight=1.0, drone_attitude=True)
+    run = sim.simulate(s, variants.build({}), settings=st)
     sent = run.link_messages
-    assert sent == pytest.approx((1.5 + 3.0) * s.link.rate_hz, abs=5)
+    assert sent == pytest.approx((st.preflight + st.engage_at + st.settle + st.seconds) * s.link.rate_hz, abs=5)
     # every frame the drone sent was taken as a good frame (the keep-alives and commands too)
     assert run.last_heartbeat["link_frames_ok"] >= sent - 60
 
 
 def test_pooled_summary_of_seeds():
-    runs = [_run("bench", seed=s, settings=sim.Settings(seconds=1.0, settle=1.0)) for s in (0, 1)]
+    runs = [_run("bench", seed=s, settings=sim.Settings(seconds=1.0, settle=1.0, preflight=0.5)) for s in (0, 1)]
     row = sim_report.summarise(runs)
     e = np.concatenate([np.linalg.norm(r.error_mm[r.scored], axis=1) for r in runs])
     assert row.rms == pytest.approx(math.sqrt(np.mean(e ** 2)))

@@ -91,6 +91,8 @@ def main(argv=None) -> int:
                     help="edit a model key for this run, e.g. estimator.complementary_gyro_weight=0.98")
     sm.add_argument("--seconds", type=float, default=60.0, help="scored seconds per seed")
     sm.add_argument("--settle", type=float, default=5.0, help="seconds after engage not scored")
+    sm.add_argument("--preflight", type=float, default=10.0,
+                    help="seconds on the ground (still, level, motors off) between power-up and the flight")
     sm.add_argument("--seeds", type=int, default=1)
     sm.add_argument("--seed", type=int, default=0, help="first seed")
     sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,
@@ -117,8 +119,9 @@ def main(argv=None) -> int:
         return link(args)
     if args.command == "sim":
         from .sim_report import sim_command
-        if args.seconds <= 0 or args.seeds < 1 or args.settle < 0 or args.poll_us < 10:
-            ap.error("--seconds must be positive, --seeds at least 1, --settle not negative, --poll-us >= 10")
+        if args.seconds <= 0 or args.seeds < 1 or args.settle < 0 or args.preflight < 0 or args.poll_us < 10:
+            ap.error("--seconds must be positive, --seeds at least 1, --settle and --preflight not negative, "
+                     "--poll-us >= 10")
         return sim_command(args)
     if args.command == "workspace":
         from pathlib import Path

@@ -268,6 +268,21 @@ def manoeuvre(seconds: float, rng: np.random.Generator, speed: float = 2.5, tilt
     return fly(t, wind, p_ref, v_ref, a_ref, params)
 
 
+def with_preflight(flight: Flight, preflight_s: float, ramp_s: float = 2.0) -> Flight:
+    """The flight preceded by preflight_s on the ground (still, level) and entered through a
+    smooth ramp of ramp_s (attitude and acceleration scaled from 0 to 1 by a smoothstep): the
+    board is powered before take-off, as on a real drone."""
+    if preflight_s <= 0:
+        return flight
+    n_pre = round(preflight_s * RATE)
+    t = np.arange(n_pre + len(flight.t)) / RATE
+    x = np.clip(flight.t / ramp_s, 0.0, 1.0) if ramp_s > 0 else np.ones(len(flight.t))
+    w = x * x * (3 - 2 * x)
+    pad = lambda a: np.concatenate([np.zeros((n_pre,) + a.shape[1:]), a])
+    return Flight(t, pad(w * flight.roll), pad(w * flight.pitch), pad(w[:, None] * flight.acc),
+                  pad(flight.pos - flight.pos[0]))
+
+
 def resample(t_log, roll, pitch, acc, seconds: float | None = None) -> Flight:
     """A flight log (any sample times, strictly increasing, from 0) on the RATE grid: roll and
     pitch by cubic Hermite interpolation (smooth rates), acceleration linearly."""

@@ -50,7 +50,8 @@ def servo_lag_s() -> float:
 class Settings:
     seconds: float = 60.0            # scored time
     settle: float = 5.0              # after engage, not scored: the arm gets there, filters settle
-    engage_at: float = 1.5           # s after power-up (enable at 0)
+    preflight: float = 10.0          # s on the ground after power-up (still, level, motors off)
+    engage_at: float = 1.5           # s after the flight starts (enable at power-up)
     poll_us: int = 250               # main-loop period of the simulated board
     servo_lag: float | None = None   # s; None: servo_lag_s()
     servo_deadband: bool = True      # the compliance margin: no torque within 1 unit of the goal
@@ -156,15 +157,22 @@ def make_servos(model, lag: float, deadband: bool):
     return out
 
 
+def scenario_flight(scenario: scenarios.Scenario, seed: int, settings: Settings) -> drone.Flight:
+    """The scenario's motion for a run (without the preflight), seeded as simulate() does."""
+    st = settings
+    return scenario.flight(st.engage_at + st.settle + st.seconds + 0.1, np.random.default_rng([seed, 2]))
+
+
 def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, settings: Settings = Settings(),
              label: str = "") -> Run:
     model = variant.model
     st = settings
     rng = np.random.default_rng([seed, 1])
-    total = st.engage_at + st.settle + st.seconds
-    flight = scenario.flight(total + 0.1, np.random.default_rng([seed, 2]))
+    flight = drone.with_preflight(scenario_flight(scenario, seed, st), st.preflight)
+    total = st.preflight + st.engage_at + st.settle + st.seconds
     motion = drone.FlightMotion(flight, model.mount_offset)
-    sensor = imu_model.Mpu6050Sensor(scenario.imu_errors(), seed=int(np.random.default_rng([seed, 3]).integers(2 ** 31)))
+    sensor = imu_model.Mpu6050Sensor(scenario.imu_errors(), seed=int(np.random.default_rng([seed, 3]).integers(2 ** 31)),
+                                     vibration_from=st.preflight)
     lag = servo_lag_s() if st.servo_lag is None else st.servo_lag
     board = SimBoard(model, servos=make_servos(model, lag, st.servo_deadband), motion=motion,
                      poll_us=st.poll_us, lib=(variant.ffi, variant.lib), record=False, sensor=sensor)
@@ -182,7 +190,7 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
 
     tick_us = board.tick_us
     end_us = round(total * US)
-    engage_us = round(st.engage_at * US)
+    engage_us = round((st.preflight + st.engage_at) * US)
     next_alive = engage_us
     rec_t, rec_q, rec_true, rec_est = [], [], [], []
     out_of_reach = n_link = 0
@@ -225,6 +233,6 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     q = direction * (np.array(rec_q) - zero) / units_per_rad
     true_att = np.array(rec_true)
     err = ee_error(model, q, true_att[:, 0], true_att[:, 1], scenario.target)
-    t = np.array(rec_t) - st.engage_at
+    t = np.array(rec_t) - st.preflight - st.engage_at
     return Run(scenario.name, seed, label, t, err, true_att, np.array(rec_est), t >= st.settle,
                flight, out_of_reach, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {})

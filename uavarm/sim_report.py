@@ -217,6 +217,7 @@ def sim_command(args) -> int:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     settings = replace(sim.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
+                       preflight=args.preflight,
                        drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude])
     label = label_of(args.estimator, args.sets)
     jobs = [(scenario, changes, label, seed, settings) for seed in range(args.seed, args.seed + args.seeds)]
@@ -236,7 +237,7 @@ def sim_command(args) -> int:
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))
     if getattr(args, "export_log", None):
-        scenarios.write_csv(results[0][0].flight, Path(args.export_log))
+        scenarios.write_csv(sim.scenario_flight(scenario, args.seed, settings), Path(args.export_log))
         print(f"wrote {args.export_log} (replay it with a scenario file: kind = \"replay\", "
               f"[motion] csv = ...)")
     if args.plots:
