@@ -10,7 +10,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from uavarm import drone, scenarios, sim, sim_report, variants
+from uavarm import drone, messages, scenarios, sim, sim_report, variants
 from uavarm.model import config
 
 MODEL = config.load()
@@ -154,26 +154,32 @@ def _run(scenario, changes=None, settings=SHORT, seed=0):
 def test_a_constant_tilt_with_an_ideal_imu_scores_the_servo_resolution(tmp_path):
     """The whole chain's frames: a drone held at 12 deg roll, -7 deg pitch (a replayed log),
     ideal IMU, mount offset 0 (so the firmware's rotation about the base is exact): what
-    remains is the servos' rounding and dead band, a unit or two at ~140 mm (~1 mm)."""
+    remains is the servos' rounding and dead band, a unit or two at ~140 mm (~1 mm). A wrong
+    frame or sign anywhere would be tens of millimetres. (The attitude bound leaves room for
+    an estimator's slow in-flight correction gains finishing their transient.)"""
     (tmp_path / "log.csv").write_text("t,roll,pitch,ax,ay,az\n0,12,-7,0,0,0\n30,12,-7,0,0,0\n")
     (tmp_path / "s.toml").write_text('kind = "replay"\n[motion]\ncsv = "log.csv"\n[imu]\nprofile = "ideal"\n')
     no_link = sim.Settings(seconds=3.0, settle=2.0, preflight=2.0, drone_attitude=False)
     run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0]}, settings=no_link)
     m = run.metrics()
-    assert m["max"] < 1.5 and m["att_max"] < 0.05, m
+    assert m["max"] < 1.5 and m["att_max"] < 0.5, m
     assert not run.faults and run.out_of_reach_ticks == 0
 
 
 @pytest.mark.parametrize("scenario, att_rms_deg", [("bench", 2.0), ("hover", 6.0), ("manoeuvre", 10.0)])
 def test_each_scenario_closes_the_loop(scenario, att_rms_deg):
     """Loose bounds that any working estimator meets: the arm follows (the error stays within
-    the uncompensated mount offset's swing), no faults, the estimate tracks."""
+    the uncompensated mount offset's swing), no faults, the estimate tracks. At the bench's
+    20 deg a stabiliser that turns the target about the centre of rotation moves it ~70 mm
+    sideways, near the edge of the reach: a few ticks out of reach are allowed."""
     run = _run(scenario)
     m = run.metrics()
     assert m["seconds"] == pytest.approx(3.0, abs=0.02)
     assert m["rms"] < 40.0 and m["max"] < 60.0, m
     assert m["att_rms"] < att_rms_deg, m
-    assert not run.faults and run.out_of_reach_ticks == 0
+    out_of_reach = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
+    assert all(f & ~out_of_reach == 0 for f in run.faults), run.faults
+    assert run.out_of_reach_ticks <= 0.05 * len(run.t)
     assert run.last_heartbeat["engaged"] == 1
 
 
