@@ -188,7 +188,8 @@ def main(argv=None) -> int:
     print(text)
     args.out.mkdir(parents=True, exist_ok=True)
     settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
-                     f"{settings.settle:.0f} s settling from engage; main loop every {settings.poll_us} us; "
+                     f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
+                     f"into the flight and {settings.settle:.0f} s settling; main loop every {settings.poll_us} us; "
                      f"servo lag {sim.servo_lag_s() * 1e3:.1f} ms; IMU profile per scenario "
                      f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
                      f"extra model edits: {args.sets or 'none'}")
