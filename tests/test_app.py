@@ -330,7 +330,9 @@ def test_tilt_that_puts_the_target_out_of_reach_holds_the_joints():
 # ---------------------------------------------------------------- IMU
 
 @pytest.mark.parametrize("fault", ["absent_at_init", "absent_later", "wrong_who_am_i"])
-def test_imu_fault_is_flagged_the_arm_still_works_and_recovers(fault):
+def test_imu_fault_is_flagged_engage_is_refused_and_it_recovers(fault):
+    """Without an attitude the arm cannot stabilise: it parks and holds, refuses engage
+    (command_refused), and takes engage again once the IMU is back (retried every second)."""
     board = make_board()
     lib, port = board.lib, board.ffi.addressof(board.hp, "port")
     if fault == "absent_at_init":
@@ -348,22 +350,24 @@ def test_imu_fault_is_flagged_the_arm_still_works_and_recovers(fault):
     assert hb["faults"] & FAULT["imu"] and hb["enabled"] == 1
     set_position(board, TARGET)
     board.send("engage", on=1)
-    t = board.time
-    assert run_until(board, lambda: at_goal(board, log, t), 1.0) is not None
-    assert np.linalg.norm(ee_of_units(shaft_units(board)) - TARGET) <= FK_TOL_MM
+    board.run(0.3)
     hb = run_to_next_heartbeat(board)
-    assert hb["faults"] & FAULT["imu"] and hb["engaged"] == 1
+    assert hb["faults"] & FAULT["imu"] and hb["faults"] & FAULT["command_refused"]
+    assert hb["engaged"] == 0 and near_park(board)
 
     board.hp.imu_present = True
     board.imu.regs[0x75] = 0x68
     t_fix = board.time
-    set_position(board, TARGET)            # keep the link alive
     retry = lib.APP_IMU_RETRY_MS / 1000
     while board.time < t_fix + retry + TICK:
         hb = run_to_next_heartbeat(board)
-        set_position(board, TARGET)
     hb = run_to_next_heartbeat(board)
     assert not hb["faults"] & FAULT["imu"], hb
+    board.send("engage", on=1)
+    t = board.time
+    assert run_until(board, lambda: at_goal(board, log, t), 1.0) is not None
+    assert np.linalg.norm(ee_of_units(shaft_units(board)) - TARGET) <= FK_TOL_MM
+    hb = run_to_next_heartbeat(board)
     assert hb["engaged"] == 1 and hb["faults"] == 0
 
 

@@ -11,7 +11,7 @@ APP = cbuild.ROOT / "firmware_stm32" / "App"
 HOST_PORT = Path(__file__).resolve().parent / "csrc"
 # cffi sees the headers in this order: every type before its first use.
 APP_HEADERS = ("llcp.h", "dxl_protocol.h", "port.h", "servo_bus.h", "imu_mpu6050.h",
-               "stabiliser.h", "app.h")
+               "stabiliser.h", "servo_track.h", "app.h")
 
 
 def app_sources(gen_dir: Path = generated.GENERATED) -> list[Path]:
