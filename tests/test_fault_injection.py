@@ -25,7 +25,7 @@ from simboard_tools import (
     shaft_units, sync_goal_speed,
 )
 from uavarm import ax12_sim, llcp, messages
-from uavarm.board import Gravity, SimBoard, baud_register
+from uavarm.board import SimBoard, baud_register
 
 TARGET = (70.0, -20.0, -95.0)
 OTHER = (40.0, 45.0, -120.0)
@@ -354,38 +354,40 @@ def test_imu_reset_to_sleep_is_set_up_again():
     assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
 
 
-class Shock(Gravity):
-    """A static tilt plus, between t0 and t1, an acceleration of `g` g along base x and a rate
-    of `rate` rad/s about base y: beyond the MPU-6050's ranges (4 g, 500 deg/s), so the
-    simulated chip clips those axes at full scale (+32767 / -32768 counts)."""
+def saturate(board, word: int, value: int, samples: int):
+    """The next `samples` samples the chip latches have data word `word` (0-2 accel x, y, z,
+    4-6 gyro x, y, z: big-endian int16 from ACCEL_XOUT_H, register map 4.17-4.19) at
+    `value`, the end of the int16 range (a shock or spin beyond the 4 g / 500 deg/s
+    ranges); the other words are the sensor's."""
+    left = [samples]
+    cls_sample = type(board.imu).sample
 
-    def __init__(self, t0, t1, g=6.0, rate=0.0):
-        super().__init__(0.0, 0.0)
-        self.t0, self.t1, self.g, self.rate = t0, t1, g, rate
-
-    def imu(self, t):
-        accel, gyro = super().imu(t)
-        if self.t0 <= t < self.t1:
-            accel = (accel[0] + self.g, accel[1], accel[2])
-            gyro = (0.0, self.rate, 0.0)
-        return accel, gyro
+    def sample(*args, **kw):
+        cls_sample(board.imu, *args, **kw)
+        if left[0] > 0 and not board.imu.asleep:
+            reg = 0x3B + 2 * word
+            board.imu.regs[reg:reg + 2] = int(value).to_bytes(2, "big", signed=True)
+            left[0] -= 1
+    board.imu.sample = sample
 
 
-@pytest.mark.parametrize("g, rate", [(6.0, 0.0), (-6.0, 0.0), (0.0, 12.0), (0.0, -12.0)],
-                         ids=["accel+", "accel-", "gyro+", "gyro-"])
-def test_brief_saturation_is_skipped_and_flagged(g, rate):
-    """Two samples at full scale: not used (the joints do not move), imu_saturated in the
-    next heartbeat, the arm stays engaged; the flag clears in the heartbeat after."""
+@pytest.mark.parametrize("word, value", [(0, 32767), (2, -32768), (4, 32767), (5, -32768)],
+                         ids=["accel_x+", "accel_z-", "gyro_x+", "gyro_y-"])
+def test_brief_saturation_is_skipped_and_flagged(word, value):
+    """Two samples with an axis at full scale: not used (the joints move no more than the
+    sensor noise moves them, one unit), imu_saturated in the next heartbeat, the arm stays
+    engaged; the flag is gone from the heartbeat after."""
     board, inv = engaged_board()
     keep_alive(inv, TARGET, 0.2)
+    inv.next_heartbeat()                                           # well inside a period
     goals_before = sync_goal_speed(inv.log.syncs()[-1].raw)[0]
-    inv.next_heartbeat()                                           # the shock well inside a period
     t = board.time
     n_hb = len(board.heartbeats)
-    board.motion = Shock(t + TICK / 2, t + 2.5 * TICK, g, rate)     # two samples
+    saturate(board, word, value, 2)
     keep_alive(inv, TARGET, 0.1)
     used = [sync_goal_speed(s.raw)[0] for s in inv.log.syncs(t)]
-    assert all(g_ == goals_before for g_ in used), "a saturated sample moved the arm"
+    moved = max(abs(a - b) for g_ in used for a, b in zip(g_, goals_before))
+    assert moved <= 1, f"a saturated sample moved a joint by {moved} units"
     assert board.app.imu_samples_used > 0 and not board.app.imu_saturated
     while len(board.heartbeats) < n_hb + 2:
         inv.next_heartbeat()
@@ -397,11 +399,10 @@ def test_brief_saturation_is_skipped_and_flagged(g, rate):
 
 
 def test_lasting_saturation_is_an_imu_fault():
-    """Saturated for 100 ms (10 samples): the IMU is unusable, the arm parks (imu and
+    """Saturated for 10 samples (100 ms): the IMU is unusable, the arm parks (imu and
     imu_saturated), and takes engage again once the samples are back in range."""
     board, inv = engaged_board()
-    t = board.time
-    board.motion = Shock(t, t + 0.1, 8.0, 0.0)
+    saturate(board, 1, -32768, 10)
     inv.flagged("imu", 0.6)
     assert board.heartbeats[-1]["faults"] & FAULT["imu_saturated"] and board.heartbeats[-1]["engaged"] == 0
     hb = inv.clear("imu", 0.6)

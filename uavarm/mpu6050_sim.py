@@ -5,12 +5,15 @@ rev 3.4), independently of the firmware's driver: WHO_AM_I reads 0x68, the chip 
 asleep (PWR_MGMT_1 = 0x40) and its data registers stay at 0 until woken, and samples are
 big-endian int16 scaled by the full-scale range the configuration registers select; each
 sample sets DATA_RDY_INT in INT_STATUS, which a read of INT_STATUS clears (register map 4.16).
-This is the ideal sensor; noise, bias and vibration belong to the closed-loop simulator.
+The values it latches come from the sensor model (uavarm.imu_model: noise, bias, scale,
+vibration, the low-pass filter and the decimation that CONFIG and SMPLRT_DIV select).
 """
 from __future__ import annotations
 
 import math
 
+REG_SMPLRT_DIV = 0x19
+REG_CONFIG = 0x1A
 REG_GYRO_CONFIG = 0x1B
 REG_ACCEL_CONFIG = 0x1C
 REG_INT_STATUS = 0x3A           # bit 0 DATA_RDY_INT: set on each sample, cleared by reading it
@@ -45,6 +48,14 @@ class Mpu6050:
     @property
     def asleep(self) -> bool:
         return bool(self.regs[REG_PWR_MGMT_1] & SLEEP)
+
+    @property
+    def dlpf_cfg(self) -> int:
+        return self.regs[REG_CONFIG] & 7
+
+    @property
+    def smplrt_div(self) -> int:
+        return self.regs[REG_SMPLRT_DIV]
 
     @property
     def accel_lsb_per_g(self) -> int:
