@@ -18,7 +18,8 @@
  *   3 SERVO n ...    n raw bytes received on the servo bus (noise, stray packets)
  *   4 SAMPLE ...     14 bytes into the IMU's data registers ACCEL_XOUT_H .., and DATA_RDY
  *                    set in INT_STATUS (also set at every tick while PWR_MGMT_1's SLEEP
- *                    bit is clear; a read of INT_STATUS clears it)
+ *                    bit is clear, with gyro x's LSB toggled as noise would; a read of
+ *                    INT_STATUS clears it)
  *   5 IMUREG r v     IMU register r & 127 = v (WHO_AM_I and the settings included)
  *   6 FLAGS f        bit 0: IMU absent (NACK); 1: the simulated servos answer reads and
  *                    (while their Status Return Level is 2) writes; 2: the master hears its
@@ -443,6 +444,7 @@ static void advance(uint32_t step)
          * bit freezes it, as a brown-out reset would */
         if (!(B.imu[MPU_REG_PWR_MGMT_1] & 0x40u)) {
             B.imu[MPU_REG_INT_STATUS] |= MPU_INT_DATA_RDY;
+            B.imu[MPU_REG_ACCEL_XOUT_H + 9] ^= 1u;   /* sensor noise: gyro x's LSB */
         }
         app_request_tick(&APP);
         next_tick = step >= MODEL_TICK_US ? B.now + MODEL_TICK_US : next_tick + MODEL_TICK_US;
