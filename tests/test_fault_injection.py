@@ -133,7 +133,7 @@ def test_status_error_byte_with_bit_7_is_not_taken():
     board, inv = engaged_board()
     tap = ReplyTap(board)
     tap.faults[IDS[0]] = with_error(7)
-    hb = inv.flagged("servo_timeout", 1.2)
+    inv.flagged("servo_timeout", 1.2)
     assert board.heartbeats[-1]["servo1_error"] == 0
     del tap.faults[IDS[0]]
     set_position(board, TARGET)
@@ -242,7 +242,7 @@ def test_drifting_servo_is_flagged_the_arm_parks_and_recovers(drift):
     board, inv, servo = engaged_faulty(1)
     servo.drift = drift
     t0 = board.time
-    t_flag = inv.flagged("servo_tracking", 0.9)
+    inv.flagged("servo_tracking", 0.9)
     hb = board.heartbeats[-1]
     assert hb["engaged"] == 0, hb
     parked_from = [s.start for s in inv.log.syncs(t0) if sync_goal_speed(s.raw)[1] == [PARK_SPEED] * 3]
@@ -373,7 +373,7 @@ def test_imu_reset_to_sleep_is_set_up_again():
     inv.flagged("imu", 0.6)
     assert board.heartbeats[-1]["engaged"] == 0
     retry = board.lib.APP_IMU_RETRY_MS / 1000
-    hb = inv.clear("imu", retry + 0.6)
+    inv.clear("imu", retry + 0.6)
     assert not board.imu.asleep and board.imu.accel_lsb_per_g == 8192
     board.send("engage", on=1)
     assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
