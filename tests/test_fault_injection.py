@@ -540,6 +540,25 @@ def test_flood_of_valid_commands():
     print(f"\nflood: {frames} frames in 1 s, {board.app.ticks_run} ticks, no tick missed")
 
 
+def test_disable_behind_a_backlog_of_link_bytes_is_still_within_a_tick():
+    """The firmware takes at most APP_LINK_BYTES_PER_POLL link bytes per main-loop pass (so
+    a flood cannot starve the tick). An enable 0 queued behind 4 kB of garbage still cuts
+    the supply within one tick: the backlog drains in a few passes. (Regression: fuzz
+    input regress-frame-behind-link-backlog, where the harness expected every queued byte
+    to be read in one pass.)"""
+    rnd = random.Random(3)
+    board, inv = engaged_board()
+    garbage = bytes(b for b in rnd.randbytes(6000) if b != ord("b"))[:4096]   # no frame starts
+    board.send_bytes(garbage + llcp.encode(messages.encode("enable", on=0)))
+    t = board.time
+    assert inv.run_until(lambda: not board.servo_power, TICK, step=board.poll_us / 1e6) is not None
+    passes = math.ceil((len(garbage) + 7) / board.lib.APP_LINK_BYTES_PER_POLL)
+    print(f"\npower off {(board.power_log[-1][0] - t) * 1e3:.1f} ms after 4 kB + enable 0 arrived ({passes} passes)")
+    assert board.power_log[-1][0] - t <= passes * board.poll_us / 1e6 + 1e-9
+    inv.run(0.6)
+    assert board.heartbeats[-1]["enabled"] == 0
+
+
 def test_link_silence_parks_heartbeat_continues_and_engage_recovers():
     board, inv = engaged_board()
     t0 = board.time
