@@ -338,6 +338,28 @@ def test_frozen_imu_parks_the_arm_and_recovers():
     assert hb["engaged"] == 1 and hb["faults"] == 0, hb
 
 
+@pytest.mark.parametrize("ticks", [2, 10])
+def test_imu_i2c_loss_while_engaged(ticks):
+    """The IMU stops answering (I2C NACK) for `ticks` ticks while engaged: 2 is a glitch
+    (no fault, the arm stays engaged); 10 is a lost chip (imu, the arm parks), and after it
+    answers again the flag clears and engage works."""
+    board, inv = engaged_board()
+    stale = board.lib.APP_IMU_STALE_TICKS
+    board.hp.imu_present = False
+    inv.run(ticks * TICK, step=TICK)
+    board.hp.imu_present = True
+    keep_alive(inv, TARGET, 0.6)
+    hbs = board.heartbeats[-2:]
+    if ticks < stale:
+        assert all(hb["engaged"] == 1 and not hb["faults"] & FAULT["imu"] for hb in hbs), hbs
+        assert board.app.imu_errors == ticks
+        return
+    assert any(hb["faults"] & FAULT["imu"] for hb in hbs) and hbs[-1]["engaged"] == 0, hbs
+    inv.clear("imu", 1.5)
+    board.send("engage", on=1)
+    assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
+
+
 def test_imu_data_frozen_while_data_ready_still_fires():
     """The converter stops but DATA_RDY keeps being set: the same 14 bytes every sample.
     The sensor's noise (uavarm.imu_model, white noise: several LSB of gyro) makes that

@@ -164,8 +164,7 @@ static void sample_imu(app_t *app)
     if (!app->imu_ok) return;
     if (!mpu_read(app->port, MODEL_MPU_ADDRESS, &raw)) {
         app->imu_errors++;
-        app->imu_ok = false;   /* the attitude holds until the chip is back */
-        app->imu_retry_us = now_us(app);
+        imu_stale_tick(app);   /* one I2C glitch is no fault; a chip gone is, in a few ticks */
         return;
     }
     app->imu_saturated = mpu_saturated(&raw);
