@@ -16,7 +16,10 @@
  *                    (14 bytes), or any payload (length byte, then the bytes)
  *   2 LINK n ...     n raw link bytes, then app_poll()
  *   3 SERVO n ...    n raw bytes received on the servo bus (noise, stray packets)
- *   4 SAMPLE ...     14 bytes into the IMU's data registers ACCEL_XOUT_H ..
+ *   4 SAMPLE ...     14 bytes into the IMU's data registers ACCEL_XOUT_H .., and DATA_RDY
+ *                    set in INT_STATUS (also set at every tick while PWR_MGMT_1's SLEEP
+ *                    bit is clear, with gyro x's LSB toggled as noise would; a read of
+ *                    INT_STATUS clears it)
  *   5 IMUREG r v     IMU register r & 127 = v (WHO_AM_I and the settings included)
  *   6 FLAGS f        bit 0: IMU absent (NACK); 1: the simulated servos answer reads and
  *                    (while their Status Return Level is 2) writes; 2: the master hears its
@@ -37,8 +40,9 @@
  *     the application's joint vector q_cmd, which passes kin_check_joints() and maps to
  *     exactly those units;
  *   - the servo supply is on exactly while the application is enabled, engaged implies
- *     enabled, and after a frame "enable 0" the supply is off when app_poll() returns;
- *   - a valid frame always reaches the application (its good-frame counter moves);
+ *     enabled, a usable IMU and no servo tracking fault, and after a frame "enable 0" the supply is off when app_poll() returns;
+ *   - a valid frame always reaches the application (its good-frame counter moves) in the
+ *     main-loop passes that drain the link input;
  *   - every heartbeat is one valid LLCP frame of a heartbeat message whose floats are all
  *     finite; the commanded joints, the set position and the attitude stay finite;
  *   - the fill levels of the buffers inside app_t (servo replies, link payload) stay within
@@ -193,7 +197,7 @@ static void check_heartbeat(const uint8_t *buf, size_t n)
     CHECK(isfinite(hb.q1) && isfinite(hb.q2) && isfinite(hb.q3));
     CHECK(hb.enabled <= 1u && hb.engaged <= 1u && hb.unreachable <= 1u);
     CHECK(!hb.engaged || hb.enabled);
-    CHECK(hb.faults < 128u);
+    CHECK(hb.faults < (1u << MSG_FAULT_COUNT));
 }
 
 /* One SYNC_WRITE of goal position and moving speed to the three servos. */
@@ -376,12 +380,16 @@ static void p_led(void *ctx, uint8_t index, bool on)
 static bool p_imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t n)
 {
     (void)ctx;
-    CHECK(buf != NULL && n >= 1 && n <= MPU_SAMPLE_BYTES);
+    CHECK(buf != NULL && n >= 1 && n <= MPU_BURST_BYTES);
     if ((B.flags & (F_IMU_ABSENT | F_IMU_READ_FAIL)) || addr != MODEL_MPU_ADDRESS) {
         return false;
     }
     for (size_t i = 0; i < n; ++i) {
-        buf[i] = B.imu[(reg + i) & 127u];
+        const uint8_t r = (uint8_t)((reg + i) & 127u);
+        buf[i] = B.imu[r];
+        if (r == MPU_REG_INT_STATUS) {
+            B.imu[r] &= (uint8_t)~MPU_INT_DATA_RDY;   /* cleared by reading it */
+        }
     }
     return true;
 }
@@ -415,6 +423,9 @@ static void poll_and_check(void)
     polls++;
     CHECK(B.power == APP.enabled);
     CHECK(!APP.engaged || APP.enabled);
+    /* engaged only with an attitude and servos that follow */
+    CHECK(!APP.engaged || (APP.imu_ok && APP.imu_stale < APP_IMU_STALE_TICKS));
+    CHECK(!APP.engaged || !track_fault(&APP.track));
     CHECK(isfinite(APP.q_cmd[0]) && isfinite(APP.q_cmd[1]) && isfinite(APP.q_cmd[2]));
     CHECK(isfinite(APP.set_position[0]) && isfinite(APP.set_position[1]) && isfinite(APP.set_position[2]));
     CHECK(isfinite(APP.stab.attitude.roll) && isfinite(APP.stab.attitude.pitch));
@@ -430,6 +441,12 @@ static void advance(uint32_t step)
 {
     B.now += step;
     if ((int32_t)(B.now - next_tick) >= 0) {
+        /* the chip latches a sample while awake (PWR_MGMT_1 SLEEP clear): a fuzzed SLEEP
+         * bit freezes it, as a brown-out reset would */
+        if (!(B.imu[MPU_REG_PWR_MGMT_1] & 0x40u)) {
+            B.imu[MPU_REG_INT_STATUS] |= MPU_INT_DATA_RDY;
+            B.imu[MPU_REG_ACCEL_XOUT_H + 9] ^= 1u;   /* sensor noise: gyro x's LSB */
+        }
         app_request_tick(&APP);
         next_tick = step >= MODEL_TICK_US ? B.now + MODEL_TICK_US : next_tick + MODEL_TICK_US;
     }
@@ -441,12 +458,17 @@ static void send_frame(const uint8_t *payload, size_t len)
     char frame[LLCP_FRAME_MAX];
     const size_t n = llcp_encode(payload, len, frame, sizeof frame);
     CHECK(n > 0);
-    CHECK(fifo_push(&B.link_in, (const uint8_t *)frame, n) == n);
     const uint32_t ok_before = APP.link.frames_ok;
-    poll_and_check();
+    const bool fits = fifo_push(&B.link_in, (const uint8_t *)frame, n) == n;
+    /* the application takes at most APP_LINK_BYTES_PER_POLL link bytes per pass: the
+     * passes that drain what was queued before the frame and the frame itself, with no
+     * time passing (a real main loop passes every few microseconds) */
+    do {
+        poll_and_check();
+    } while (B.link_in.len > 0 && polls < MAX_POLLS);
     const int want = msg_expected_len(payload[0]);
-    if (want == (int)len) {
-        CHECK(APP.link.frames_ok == ok_before + 1u);
+    if (fits && B.link_in.len == 0 && want == (int)len) {
+        CHECK(APP.link.frames_ok >= ok_before + 1u);   /* (earlier bytes may hold frames too) */
         if (payload[0] == MSG_ENABLE_ID && payload[1] == 0) {
             CHECK(!B.power && !APP.enabled && !APP.engaged);
         }
@@ -555,6 +577,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         }
         case OP_SAMPLE:
             take_bytes(&in, B.imu + MPU_REG_ACCEL_XOUT_H, MPU_SAMPLE_BYTES);
+            B.imu[MPU_REG_INT_STATUS] |= MPU_INT_DATA_RDY;
             break;
         case OP_IMUREG: {
             const uint8_t r = take(&in);

@@ -190,7 +190,18 @@ def app_seeds() -> list[bytes]:
                .flags(F_IMU_WRITE_LOST).imu_reg(117, 0x68).run(1.1, 10000)   # settings do not stick
                .flags(F_IMU_WRITE_FAIL).run(1.1, 10000).flags(0).run(1.1, 10000))
     no_servos = Session(flags=F_IMU_ABSENT).send("enable", on=1).run(0.3, 2500).run(0.1, 1000)
-    return [engaged.data, wrap.data, faults.data, refused.data, no_servos.data]
+    # the IMU resets asleep (no DATA_RDY): park; set up again after 1 s; engage; a sample at
+    # full scale (MPU-6050 register map: int16 range) is skipped and flagged
+    imu = (started().send("set_position", x=70.0, y=-20.0, z=-95.0).send("engage", on=1).run(0.05, 10000)
+           .imu_reg(107, 0x40).run(1.2, 10000).send("engage", on=1).run(0.05, 10000))
+    imu.data += bytes([OP_SAMPLE]) + struct.pack(">3hh3h", 32767, 0, 8192, 0, 0, -32768, 0)
+    imu.tick()
+    # servo 1's shaft stays at 768 whatever it is sent (stuck): its status reads, between
+    # each tick's SYNC_WRITE and the next, show it not following
+    stuck = started().send("engage", on=1).run(0.02, 10000)
+    for _ in range(33):
+        stuck.run(0.01, 10000).servo_reg(0, 36, 0x00).servo_reg(0, 37, 0x03).run(0.005, 2500)
+    return [engaged.data, wrap.data, faults.data, refused.data, no_servos.data, imu.data, stuck.data]
 
 
 # ------------------------------------------------------------------ model_loader

@@ -65,10 +65,15 @@ FAULTS = (
     ("servo_timeout", "a servo's status read went unanswered after every retry (latest round)"),
     ("servo_error", "a servo's last status packet had an error bit set (see servoN_error)"),
     ("servo_config", "the registers written at enable could not be read back (latched; power cut)"),
-    ("imu", "the IMU did not answer, or is not an MPU-6050 (stabilisation holds the last attitude)"),
+    ("imu", "the IMU did not answer, is not an MPU-6050, or gave no usable sample (none new, or full "
+            "scale) for several ticks: an engaged arm parks, engage is refused until it is back"),
     ("link_lost", "the link fell silent while engaged, so the arm parked (latched until engage)"),
     ("out_of_reach", "at the current tilt no valid solution reaches the set position; joints held"),
-    ("command_refused", "the last command was refused: engage while disabled, or a non-finite target"),
+    ("command_refused", "the last command was refused: engage while disabled or while the imu or "
+                        "servo_tracking fault stands, or a non-finite target"),
+    ("imu_saturated", "an IMU sample since the last heartbeat had an axis at full scale; it was not used"),
+    ("servo_tracking", "a servo's shaft has not followed its goal as its speed allows (stuck, drifting "
+                       "or limp): an engaged arm parks, engage is refused until it tracks again"),
 )
 
 

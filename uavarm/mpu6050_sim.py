@@ -3,7 +3,8 @@
 Written from the InvenSense register map (RM-MPU-6000A rev 4.2) and datasheet (PS-MPU-6000A
 rev 3.4), independently of the firmware's driver: WHO_AM_I reads 0x68, the chip powers up
 asleep (PWR_MGMT_1 = 0x40) and its data registers stay at 0 until woken, and samples are
-big-endian int16 scaled by the full-scale range the configuration registers select.
+big-endian int16 scaled by the full-scale range the configuration registers select; each
+sample sets DATA_RDY_INT in INT_STATUS, which a read of INT_STATUS clears (register map 4.16).
 The values it latches come from the sensor model (uavarm.imu_model: noise, bias, scale,
 vibration, the low-pass filter and the decimation that CONFIG and SMPLRT_DIV select).
 """
@@ -15,6 +16,8 @@ REG_SMPLRT_DIV = 0x19
 REG_CONFIG = 0x1A
 REG_GYRO_CONFIG = 0x1B
 REG_ACCEL_CONFIG = 0x1C
+REG_INT_STATUS = 0x3A           # bit 0 DATA_RDY_INT: set on each sample, cleared by reading it
+DATA_RDY = 0x01
 REG_ACCEL_XOUT_H = 0x3B
 REG_GYRO_XOUT_H = 0x43
 REG_PWR_MGMT_1 = 0x6B
@@ -72,3 +75,4 @@ class Mpu6050:
         words += [w * self.gyro_lsb_per_rad_s for w in gyro_rad_s]
         data = b"".join(_int16(w).to_bytes(2, "big", signed=True) for w in words)
         self.regs[REG_ACCEL_XOUT_H:REG_ACCEL_XOUT_H + 14] = data
+        self.regs[REG_INT_STATUS] |= DATA_RDY       # (the host port clears it when read)

@@ -3,6 +3,8 @@
 
 #include <string.h>
 
+#define HOST_MPU_INT_STATUS 0x3Au   /* MPU-6050 register map 4.16 */
+
 static size_t fifo_push(host_fifo_t *f, const uint8_t *buf, size_t n)
 {
     if (f->head > 0 && f->head + f->len + n > HOST_FIFO_CAP) {
@@ -87,7 +89,11 @@ static bool imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t 
 {
     host_port_t *hp = hp_of(ctx);
     if (!hp->imu_present || addr != hp->imu_address) return false;
-    for (size_t i = 0; i < n; ++i) buf[i] = hp->imu_regs[(reg + i) & 127u];
+    for (size_t i = 0; i < n; ++i) {
+        const uint8_t r = (uint8_t)((reg + i) & 127u);
+        buf[i] = hp->imu_regs[r];
+        if (r == HOST_MPU_INT_STATUS) hp->imu_regs[r] &= (uint8_t)~1u;   /* DATA_RDY clears on read */
+    }
     hp->imu_reads++;
     return true;
 }

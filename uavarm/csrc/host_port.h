@@ -9,7 +9,8 @@
  *            the bus simulator); host_port_servo_push() = bytes the servos sent back. A
  *            send keeps the line busy for its bytes' time at the configured baud.
  *   IMU      a 128-byte MPU-6050 register file: reads and writes go to imu_regs (reads
- *            auto-increment); imu_present = false makes every transfer fail (NACK).
+ *            auto-increment; one that covers INT_STATUS clears its DATA_RDY bit, as the
+ *            chip does); imu_present = false makes every transfer fail (NACK).
  *   time     now_us, set by Python.
  */
 #ifndef HOST_PORT_H

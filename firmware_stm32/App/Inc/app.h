@@ -10,6 +10,12 @@
  * a level base (flagged "unreachable", the previous set position is kept). While engaged,
  * a target that the current tilt puts out of reach holds the joints and flags it. An
  * engaged arm whose link is silent for the model's timeout parks and flags "link lost".
+ * An engaged arm also parks when the IMU gives no usable sample for APP_IMU_STALE_TICKS
+ * ticks (absent, not sampling, data frozen, or at full scale) or a servo stops following its goal
+ * (servo_track.h); engage is refused while either stands.
+ * The heartbeat reports the imu, imu_saturated and servo_tracking bits if they stood at
+ * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
+ * as they stand.
  *
  * Main loop: app_poll() as often as possible. Tick: app_request_tick() from the IMU's
  * data-ready or a timer interrupt at the model's sample rate; the next app_poll() runs it.
@@ -20,9 +26,11 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "imu_mpu6050.h"
 #include "llcp.h"
 #include "port.h"
 #include "servo_bus.h"
+#include "servo_track.h"
 #include "stabiliser.h"
 
 #ifdef __cplusplus
@@ -31,12 +39,16 @@ extern "C" {
 
 /* cffi:begin */
 #define APP_IMU_RETRY_MS 1000
+#define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
+#define APP_IMU_SAME_SAMPLES 10        /* new samples with the very same 14 bytes: data frozen */
+#define APP_LINK_BYTES_PER_POLL 256    /* a flood of link bytes cannot starve the tick */
 
 typedef struct {
     const port_t *port;
     llcp_rx_t link;
     sbus_t bus;
     stab_t stab;
+    track_t track;
     /* control state */
     bool enabled;
     bool engaged;
@@ -51,6 +63,12 @@ typedef struct {
     bool imu_ok;
     uint32_t imu_retry_us;
     uint16_t imu_errors;
+    uint16_t imu_stale;            /* ticks in a row without a usable sample (saturates) */
+    uint16_t imu_same;             /* new samples in a row identical to the one before (saturates) */
+    mpu_raw_t imu_last;            /* the sample before */
+    bool imu_saturated;            /* the latest sample had an axis at full scale */
+    uint32_t imu_samples_used;
+    uint16_t faults_since_heartbeat;   /* held fault bits seen at ticks since the last heartbeat */
     /* timing */
     volatile uint32_t ticks_requested;
     uint32_t ticks_run;

@@ -18,24 +18,33 @@ extern "C" {
 #define MPU_REG_GYRO_CONFIG 27
 #define MPU_REG_ACCEL_CONFIG 28
 #define MPU_REG_INT_ENABLE 56
+#define MPU_REG_INT_STATUS 58       /* DATA_RDY_INT (bit 0): a new sample; cleared by reading it */
 #define MPU_REG_ACCEL_XOUT_H 59     /* accel x, y, z, temperature, gyro x, y, z: big-endian int16 */
 #define MPU_REG_PWR_MGMT_1 107
 #define MPU_REG_WHO_AM_I 117
 #define MPU_WHO_AM_I 104            /* 0x68 whatever the AD0 pin says */
 #define MPU_SAMPLE_BYTES 14
+#define MPU_INT_DATA_RDY 1u
+#define MPU_BURST_BYTES 15          /* INT_STATUS and the sample, one transfer */
 
 typedef struct {
     int16_t accel[3];
     int16_t temperature;
     int16_t gyro[3];
+    bool fresh;                     /* DATA_RDY was set: the chip latched a sample since the last read */
 } mpu_raw_t;
 
 /* Checks WHO_AM_I, wakes the chip on the gyro-X PLL clock, and writes sample rate divider,
  * digital low-pass, ranges and the data-ready interrupt from the model file, then reads
  * them back. False if the chip did not answer or a setting did not stick. */
 bool mpu_init(const port_t *port, uint8_t address);
-/* One 14-byte burst from ACCEL_XOUT_H; false on a bus error. */
+/* One 15-byte burst from INT_STATUS: the data-ready flag (which the read clears) and the
+ * sample. False on a bus error. A chip that stops sampling (asleep after a brown-out, hung)
+ * still answers, with fresh = false. */
 bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw);
+/* Any accelerometer or gyro axis at the end of its range (-32768 or 32767 counts): the true
+ * value may be beyond it. */
+bool mpu_saturated(const mpu_raw_t *raw);
 /* Raw counts to g and rad/s (ranges from the model file), still in the IMU's axes. */
 void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3]);
 /* cffi:end */

@@ -67,6 +67,7 @@ typedef struct {
     uint16_t present_load;         /* bit 10 = direction */
     uint8_t present_voltage;       /* 0.1 V */
     uint8_t present_temperature;   /* deg C */
+    uint16_t reads;                /* status readings taken */
     uint16_t timeouts;             /* requests that got no valid answer in time */
     uint16_t retries;              /* requests repeated after a timeout */
     uint16_t bad_packets;          /* status packets with a bad checksum */

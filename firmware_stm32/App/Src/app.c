@@ -9,6 +9,11 @@
 #include "model_params.h"
 #include "servo_map.h"
 
+/* Fault bits the heartbeat reports if they stood at any tick since the previous one: they
+ * can come and go between two heartbeats (a saturated sample, a short IMU dropout that
+ * parked the arm, a servo that stalled for a moment). */
+#define APP_FAULTS_HELD (MSG_FAULT_IMU | MSG_FAULT_IMU_SATURATED | MSG_FAULT_SERVO_TRACKING)
+
 static const float PARK[3] = { MODEL_PARK_Q1, MODEL_PARK_Q2, MODEL_PARK_Q3 };
 
 static uint32_t now_us(const app_t *app)
@@ -19,6 +24,12 @@ static uint32_t now_us(const app_t *app)
 static void park_joints(app_t *app)
 {
     memcpy(app->q_cmd, PARK, sizeof app->q_cmd);
+}
+
+/* The IMU answers and gave a usable sample within the last few ticks. */
+static bool imu_usable(const app_t *app)
+{
+    return app->imu_ok && app->imu_stale < APP_IMU_STALE_TICKS;
 }
 
 static void try_imu(app_t *app)
@@ -58,6 +69,7 @@ static void set_enabled(app_t *app, bool on)
         app->servo_config_failed = false;
         park_joints(app);
     }
+    track_reset(&app->track);   /* readings from before a power cycle say nothing */
     sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
 }
 
@@ -85,7 +97,8 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         app->refused = false;
         set_enabled(app, enable.on != 0);
     } else if (msg_engage_unpack(payload, len, &engage)) {
-        app->refused = engage.on && !app->enabled;
+        /* stabilising needs an attitude and servos that follow */
+        app->refused = engage.on && (!app->enabled || !imu_usable(app) || track_fault(&app->track));
         if (app->refused) return;
         app->engaged = engage.on != 0;
         if (app->engaged) app->link_lost = false;
@@ -112,8 +125,10 @@ static uint32_t link_ms(app_t *app)
 static void read_link(app_t *app)
 {
     uint8_t chunk[64];
-    size_t n;
-    while ((n = app->port->link_read(app->port->ctx, chunk, sizeof chunk)) > 0) {
+    size_t n, budget = APP_LINK_BYTES_PER_POLL;   /* the rest waits in the port's buffer */
+    while (budget > 0 && (n = app->port->link_read(app->port->ctx, chunk,
+                                                    budget < sizeof chunk ? budget : sizeof chunk)) > 0) {
+        budget -= n;
         for (size_t i = 0; i < n; ++i) {
             if (llcp_rx_byte(&app->link, (char)chunk[i], link_ms(app)) == LLCP_RX_FRAME) {
                 on_frame(app, app->link.payload, app->link.len);
@@ -125,20 +140,50 @@ static void read_link(app_t *app)
 
 /* ------------------------------------------------------------------ tick */
 
+static bool same_sample(const mpu_raw_t *a, const mpu_raw_t *b)
+{
+    for (int i = 0; i < 3; ++i) {
+        if (a->accel[i] != b->accel[i] || a->gyro[i] != b->gyro[i]) return false;
+    }
+    return a->temperature == b->temperature;
+}
+
+/* A tick without a usable sample: the attitude holds. */
+static void imu_stale_tick(app_t *app)
+{
+    if (app->imu_stale < UINT16_MAX) app->imu_stale++;
+    if (app->imu_stale == APP_IMU_STALE_TICKS) app->imu_retry_us = now_us(app);
+}
+
 static void sample_imu(app_t *app)
 {
     mpu_raw_t raw;
     float accel[3], gyro[3];
-    if (!app->imu_ok) {
-        if (now_us(app) - app->imu_retry_us >= APP_IMU_RETRY_MS * 1000u) try_imu(app);
-        return;
-    }
+    /* set the chip up again if it is gone or stopped sampling (asleep after a brown-out) */
+    if (!imu_usable(app) && now_us(app) - app->imu_retry_us >= APP_IMU_RETRY_MS * 1000u) try_imu(app);
+    if (!app->imu_ok) return;
     if (!mpu_read(app->port, MODEL_MPU_ADDRESS, &raw)) {
         app->imu_errors++;
-        app->imu_ok = false;   /* the attitude holds until the chip is back */
-        app->imu_retry_us = now_us(app);
+        imu_stale_tick(app);   /* one I2C glitch is no fault; a chip gone is, in a few ticks */
         return;
     }
+    app->imu_saturated = mpu_saturated(&raw);
+    if (raw.fresh) {
+        /* a real sensor's noise changes some bit of every sample: the very same 14 bytes
+         * many times over are a converter that stopped, though data-ready still fires */
+        if (same_sample(&raw, &app->imu_last)) {
+            if (app->imu_same < UINT16_MAX) app->imu_same++;
+        } else {
+            app->imu_same = 0;
+        }
+        app->imu_last = raw;
+    }
+    if (!raw.fresh || app->imu_saturated || app->imu_same >= APP_IMU_SAME_SAMPLES) {
+        imu_stale_tick(app);   /* no new sample, a frozen one, or one whose true value is unknown */
+        return;
+    }
+    app->imu_stale = 0;
+    app->imu_samples_used++;
     mpu_scale(&raw, accel, gyro);
     stab_sample(&app->stab, accel, gyro);
 }
@@ -180,7 +225,12 @@ static void show_state(const app_t *app)
 static void tick(app_t *app)
 {
     sample_imu(app);
+    track_update(&app->track, &app->bus, now_us(app));
+    if (app->engaged && (!imu_usable(app) || track_fault(&app->track))) {
+        app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
+    }
     if (app->enabled) command_servos(app);
+    app->faults_since_heartbeat |= app_faults(app) & APP_FAULTS_HELD;
     show_state(app);
 }
 
@@ -194,7 +244,9 @@ uint16_t app_faults(const app_t *app)
         if (app->bus.servo[i].last_error) f |= MSG_FAULT_SERVO_ERROR;
     }
     if (app->servo_config_failed) f |= MSG_FAULT_SERVO_CONFIG;
-    if (!app->imu_ok) f |= MSG_FAULT_IMU;
+    if (!imu_usable(app)) f |= MSG_FAULT_IMU;
+    if (app->imu_saturated) f |= MSG_FAULT_IMU_SATURATED;
+    if (track_fault(&app->track)) f |= MSG_FAULT_SERVO_TRACKING;
     if (app->link_lost) f |= MSG_FAULT_LINK_LOST;
     if (app->out_of_reach) f |= MSG_FAULT_OUT_OF_REACH;
     if (app->refused) f |= MSG_FAULT_COMMAND_REFUSED;
@@ -227,7 +279,7 @@ static void send_heartbeat(app_t *app)
     hb.enabled = app->enabled;
     hb.engaged = app->engaged;
     hb.unreachable = app->unreachable;
-    hb.faults = app_faults(app);
+    hb.faults = (uint16_t)(app_faults(app) | app->faults_since_heartbeat);
     hb.servo1_error = app->bus.servo[0].last_error;
     hb.servo2_error = app->bus.servo[1].last_error;
     hb.servo3_error = app->bus.servo[2].last_error;
@@ -246,6 +298,7 @@ static void send_heartbeat(app_t *app)
     size_t n = llcp_encode_tx(payload, len, frame, sizeof frame);
     if (n > 0 && app->port->link_write(app->port->ctx, (const uint8_t *)frame, n)) {
         app->heartbeats_sent++;
+        app->faults_since_heartbeat = 0;
     } else {
         app->heartbeats_dropped++;
     }

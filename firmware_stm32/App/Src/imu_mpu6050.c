@@ -4,14 +4,13 @@
 #include "model_params.h"
 
 #define PWR_CLOCK_PLL_GYRO_X 1u     /* SLEEP cleared, CLKSEL = 1 */
-#define INT_DATA_READY 1u
 
 static const uint8_t SETTINGS[][2] = {
     { MPU_REG_SMPLRT_DIV, MODEL_MPU_SMPLRT_DIV },
     { MPU_REG_CONFIG, MODEL_MPU_DLPF_CFG },
     { MPU_REG_GYRO_CONFIG, MODEL_MPU_GYRO_FS_SEL << 3 },
     { MPU_REG_ACCEL_CONFIG, MODEL_MPU_ACCEL_FS_SEL << 3 },
-    { MPU_REG_INT_ENABLE, INT_DATA_READY },
+    { MPU_REG_INT_ENABLE, MPU_INT_DATA_RDY },
 };
 #define N_SETTINGS (sizeof SETTINGS / sizeof SETTINGS[0])
 
@@ -42,16 +41,33 @@ static int16_t be16(const uint8_t *b)
 
 bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw)
 {
-    uint8_t b[MPU_SAMPLE_BYTES];
-    if (!port->imu_read(port->ctx, address, MPU_REG_ACCEL_XOUT_H, b, sizeof b)) {
+    uint8_t burst[MPU_BURST_BYTES];
+    if (!port->imu_read(port->ctx, address, MPU_REG_INT_STATUS, burst, sizeof burst)) {
         return false;
     }
+    const uint8_t *b = burst + (MPU_REG_ACCEL_XOUT_H - MPU_REG_INT_STATUS);
     for (int i = 0; i < 3; ++i) {
         raw->accel[i] = be16(b + 2 * i);
         raw->gyro[i] = be16(b + 8 + 2 * i);
     }
     raw->temperature = be16(b + 6);
+    raw->fresh = (burst[0] & MPU_INT_DATA_RDY) != 0u;
     return true;
+}
+
+static bool full_scale(int16_t v)
+{
+    return v == INT16_MIN || v == INT16_MAX;
+}
+
+bool mpu_saturated(const mpu_raw_t *raw)
+{
+    for (int i = 0; i < 3; ++i) {
+        if (full_scale(raw->accel[i]) || full_scale(raw->gyro[i])) {
+            return true;
+        }
+    }
+    return false;
 }
 
 void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3])

@@ -312,6 +312,7 @@ static void take_status(sbus_servo_t *s, const uint8_t *p)
     s->present_temperature = p[7];
     s->status_valid = true;
     s->failed = false;
+    s->reads++;
 }
 
 static void run(sbus_t *bus)

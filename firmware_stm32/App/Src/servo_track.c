@@ -1,0 +1,61 @@
+/* Servo tracking watch; see servo_track.h. */
+#include "servo_track.h"
+
+#include <string.h>
+
+/* Moving Speed unit -> position units per second: 0.111 rpm x 6 deg/s per rpm x 1023/300
+ * units per deg (AX-12A e-manual, joint mode). */
+#define UNITS_PER_S_PER_SPEED_UNIT (0.111f * 6.0f * 1023.0f / 300.0f)
+
+void track_reset(track_t *t)
+{
+    memset(t, 0, sizeof *t);
+}
+
+static int32_t abs32(int32_t v)
+{
+    return v < 0 ? -v : v;
+}
+
+/* One new reading of a servo at `pos` that was sent `goal` at `speed`. */
+static bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal, uint16_t speed, uint32_t dt_us)
+{
+    const int32_t error = (int32_t)goal - (int32_t)pos;
+    if (abs32(error) <= TRACK_TOL_UNITS) return true;
+    const int32_t left = (int32_t)goal - (int32_t)w->last_position;
+    const int32_t moved = ((int32_t)pos - (int32_t)w->last_position) * (left < 0 ? -1 : 1);
+    const float allowed = (float)(speed & 0x3FFu) * UNITS_PER_S_PER_SPEED_UNIT * ((float)dt_us * 1e-6f);
+    const float wanted = (float)abs32(left) < allowed ? (float)abs32(left) : allowed;
+    return moved > 0 && (float)moved >= TRACK_MIN_PROGRESS * wanted;
+}
+
+void track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
+{
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        track_servo_t *w = &t->servo[i];
+        const sbus_servo_t *s = &bus->servo[i];
+        if (s->reads == w->reads_seen) continue;
+        w->reads_seen = s->reads;
+        const uint32_t dt_us = now_us - w->last_us;
+        if (w->have_last) {
+            if (tracks(w, s->present_position, bus->goal[i], bus->speed[i], dt_us)) {
+                w->bad_us = 0;
+                w->fault = false;
+            } else {
+                w->bad_us = w->bad_us + dt_us < w->bad_us ? UINT32_MAX : w->bad_us + dt_us;
+                w->fault = w->bad_us >= TRACK_FAULT_US;
+            }
+        }
+        w->last_position = s->present_position;
+        w->last_us = now_us;
+        w->have_last = true;
+    }
+}
+
+bool track_fault(const track_t *t)
+{
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        if (t->servo[i].fault) return true;
+    }
+    return false;
+}

@@ -1,0 +1,139 @@
+"""The safety invariants of a fault-injection run on the simulated board, checked after
+every step (tests/test_fault_injection.py). Everything is observed where the hardware
+would see it: the servo-bus packets (BusLog), the supply switch, and the heartbeat frames.
+
+Oracles, independent of the C under test: tests/oracles.py's plain geometry through
+simboard_tools.pose_ok (joint limits, body, legs, with the servo rounding), the model's
+servo map, the model's heartbeat period and tick, Protocol 1.0 framing.
+"""
+from __future__ import annotations
+
+import math
+
+from simboard_tools import FAULT, MODEL, PARK_SPEED, TICK, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
+from simboard_tools import pose_ok
+from uavarm import messages
+from uavarm.board import SimBoard
+
+HB = MODEL.heartbeat_period
+
+
+class Invariants:
+    """After every check():
+    - every servo packet left with the supply on and after the servos' boot time;
+    - every SYNC_WRITE commands a pose inside the joint limits and clear of the body and
+      the legs (plain geometry), at the park or the working speed;
+    - every heartbeat has finite set position and joints (no NaN reaches the drone or a
+      servo), engaged only while enabled, enabled exactly while the supply is on, and
+      only known fault bits;
+    - heartbeats keep coming: none further apart than the period (plus one main-loop pass);
+    - ticks keep running: a SYNC_WRITE at least every `max_sync_gap` while the arm is
+      enabled and its servos configured.
+    disable() sends "enable 0" and checks the supply is off within one tick."""
+
+    def __init__(self, board: SimBoard, log: BusLog | None = None):
+        self.board = board
+        self.log = log or BusLog(board)
+        self.n_tx = self.n_hb = 0
+        self.checks = 0
+        self.poll = board.poll_us / 1e6
+        self.max_sync_gap = TICK + self.poll + 1e-9
+        self._sync_from: float | None = None
+
+    def power_at(self, t: float) -> tuple[bool, float]:
+        """(on, since when) of the servo supply at time t."""
+        state, since = False, 0.0
+        for when, on in self.board.power_log:
+            if when <= t + 1e-12:
+                state, since = on, when
+        return state, since
+
+    def check(self) -> None:
+        board, log = self.board, self.log
+        for k in range(self.n_tx, len(log.tx)):
+            p = log.tx[k]
+            assert log.tx_power[k], f"{p.raw.hex(' ')} sent with the servo power off"
+            assert p.start - self.power_at(p.start)[1] >= MODEL.servo_boot_time - 1e-9, "sent during boot"
+            if p.inst == 0x83:
+                goal, speed = sync_goal_speed(p.raw)
+                assert pose_ok(goal), ("unsafe command", goal, units_to_joints(goal))
+                assert speed in ([PARK_SPEED] * 3, [WORKING_SPEED] * 3), speed
+        self.n_tx = len(log.tx)
+        for k in range(self.n_hb, len(board.heartbeats)):
+            hb, t = board.heartbeats[k], board.heartbeat_times[k]
+            assert not hb["engaged"] or hb["enabled"], hb
+            assert hb["enabled"] == self.power_at(t)[0], (t, hb)
+            assert all(math.isfinite(hb[f]) for f in ("set_x", "set_y", "set_z", "q1", "q2", "q3")), hb
+            assert hb["faults"] < 1 << len(messages.FAULTS), hb
+            before = board.heartbeat_times[k - 1] if k > 0 else 0.0
+            assert t - before <= HB + self.poll + 1e-9, f"heartbeat gap {t - before:.4f} s at {t:.3f} s"
+        self.n_hb = len(board.heartbeats)
+        last = board.heartbeat_times[-1] if board.heartbeat_times else 0.0
+        assert board.time - last <= HB + self.poll + 1e-9, f"no heartbeat since {last:.3f} s"
+        self._check_ticks()
+        self.checks += 1
+
+    def _check_ticks(self) -> None:
+        """While the servos run, a SYNC_WRITE at least every tick: the tick is never starved."""
+        board = self.board
+        if not (board.app.bus.state == 3 and board.servo_power):
+            self._sync_from = None
+            return
+        if self._sync_from is None:
+            self._sync_from = board.time
+        times = [self._sync_from] + [p.start for p in self.log.syncs(self._sync_from)]
+        times.append(board.time - TICK)     # the last one is at most a tick old
+        for a, b in zip(times, times[1:]):
+            assert b - a <= self.max_sync_gap, f"no SYNC_WRITE for {b - a:.4f} s after {a:.3f} s"
+        self._sync_from = max(times[-2], self._sync_from)
+
+    def run(self, seconds: float, step: float = 0.01) -> None:
+        """Runs `seconds`, checking after every `step`."""
+        end = self.board.time + seconds
+        while self.board.time < end - 1e-9:
+            self.board.run(min(step, end - self.board.time))
+            self.check()
+
+    def run_until(self, cond, timeout: float, step: float = 0.01) -> float | None:
+        """Runs until cond() holds, checking after every step; the time, or None."""
+        end = self.board.time + timeout
+        while self.board.time < end - 1e-9:
+            if cond():
+                return self.board.time
+            self.board.run(min(step, end - self.board.time))
+            self.check()
+        return self.board.time if cond() else None
+
+    def next_heartbeat(self) -> dict:
+        n = len(self.board.heartbeats)
+        assert self.run_until(lambda: len(self.board.heartbeats) > n, HB + 0.02, step=0.002) is not None
+        return self.board.heartbeats[-1]
+
+    def flagged(self, name: str, within: float) -> float:
+        """Runs until a heartbeat carries fault `name`; the time of that heartbeat."""
+        start = len(self.board.heartbeats)
+        t = self.run_until(lambda: any(hb["faults"] & FAULT[name] for hb in self.board.heartbeats[start:]),
+                           within, step=0.005)
+        assert t is not None, f"{name} not flagged within {within} s: {self.board.heartbeats[start:]}"
+        return t
+
+    def clear(self, name: str, within: float) -> dict:
+        """Runs until a heartbeat no longer carries fault `name`; that heartbeat."""
+        start = len(self.board.heartbeats)
+        t = self.run_until(lambda: any(not hb["faults"] & FAULT[name] for hb in self.board.heartbeats[start:]),
+                           within, step=0.005)
+        assert t is not None, f"{name} still flagged after {within} s"
+        return next(hb for hb in self.board.heartbeats[start:] if not hb["faults"] & FAULT[name])
+
+    def disable(self) -> None:
+        """enable 0: the supply is off within one tick, and no packet leaves after."""
+        self.board.send("enable", on=0)
+        t = self.board.time
+        self.board.run(TICK)
+        assert not self.board.servo_power, "power off within a tick of the disable frame"
+        t_off = self.board.power_log[-1][0] if self.board.power_log else 0.0
+        assert t_off - t <= TICK
+        self.check()
+        self.board.run(0.05)
+        assert not [p for p in self.log.tx if p.start > t_off + 1e-9]
+        self.check()
