@@ -148,6 +148,13 @@ def test_vibration_tones_are_in_the_propeller_band():
         assert max(t.freq for t in tones) - min(t.freq for t in tones) <= 6.0
 
 
+def test_vibration_starts_with_the_motors():
+    sensor = Mpu6050Sensor("calibrated", seed=4, vibration_from=1.0)
+    t = np.arange(0, 2.0, 0.001)
+    v = sensor.sample_errors(t)
+    assert np.all(v[t < 1.0] == 0) and np.abs(v[t >= 1.0]).max() > 0.05
+
+
 def test_output_updates_every_smplrt_div_plus_one_internal_samples():
     sensor = Mpu6050Sensor("white", seed=3)
     acc, _ = record(sensor, still, 0.2, cfg=3, div=9)

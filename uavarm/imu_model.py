@@ -159,8 +159,9 @@ class Mpu6050Sensor:
     (specific force in g, angular rate in rad/s), IMU axes. truth(t) gives the true
     (specific force g, rate rad/s) in IMU axes at an internal sample time."""
 
-    def __init__(self, errors: ImuErrors | str = "white", seed: int = 0):
+    def __init__(self, errors: ImuErrors | str = "white", seed: int = 0, vibration_from: float = 0.0):
         self.errors = PROFILES[errors] if isinstance(errors, str) else errors
+        self.vibration_from = vibration_from      # s: the motors start (before: on the ground, off)
         self.rng = np.random.default_rng(seed)
         self.draw = draw(self.errors, self.rng)
         fs = INTERNAL_RATE
@@ -190,6 +191,7 @@ class Mpu6050Sensor:
         for tone in self.draw.tones:
             s = np.sin(2 * math.pi * tone.freq * t + tone.phase)[:, None]
             out += s * np.r_[tone.accel_g, tone.gyro_rad_s]
+        out[t < self.vibration_from] = 0.0
         return out
 
     def read(self, t: float, truth, dlpf_cfg: int, smplrt_div: int):
