@@ -16,6 +16,7 @@ APP_SOURCES = \
     App/Src/imu_mpu6050.c \
     App/Src/llcp.c \
     App/Src/servo_bus.c \
+    App/Src/servo_track.c \
     App/Src/stabiliser.c
 
 # Generated from model/manipulator.toml (make codegen); never edited by hand.

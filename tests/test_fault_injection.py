@@ -360,31 +360,6 @@ def test_imu_i2c_loss_while_engaged(ticks):
     assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
 
 
-def test_imu_data_frozen_while_data_ready_still_fires():
-    """The converter stops but DATA_RDY keeps being set: the same 14 bytes every sample.
-    The sensor's noise (uavarm.imu_model, white noise: several LSB of gyro) makes that
-    impossible for a working chip, so after APP_IMU_SAME_SAMPLES identical samples the IMU
-    is unusable: imu, the arm parks; changing data again clears it."""
-    board, inv = engaged_board()
-    regs = board.imu.regs
-
-    def ready_only(*a, **k):
-        regs[0x3A] |= 0x01                 # INT_STATUS DATA_RDY_INT, data registers unchanged
-    board.imu.sample = ready_only
-    t0 = board.time
-    same, stale = board.lib.APP_IMU_SAME_SAMPLES, board.lib.APP_IMU_STALE_TICKS
-    assert inv.run_until(lambda: any(sync_goal_speed(s.raw)[1] == [PARK_SPEED] * 3 for s in inv.log.syncs(t0)),
-                         0.4, step=0.001) is not None
-    t_park = min(s.start for s in inv.log.syncs(t0) if sync_goal_speed(s.raw)[1] == [PARK_SPEED] * 3)
-    assert t_park - t0 <= (same + stale + 1) * TICK + 0.002
-    hb = inv.next_heartbeat()
-    assert hb["faults"] & FAULT["imu"] and hb["engaged"] == 0
-    thaw_imu(board)
-    inv.clear("imu", 1.0)
-    board.send("engage", on=1)
-    assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
-
-
 def test_imu_reset_to_sleep_is_set_up_again():
     """A brown-out resets the MPU-6050: registers at power-on values, asleep (PWR_MGMT_1 =
     0x40), no samples. The firmware flags imu, parks, and within APP_IMU_RETRY_MS sets the

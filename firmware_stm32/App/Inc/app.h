@@ -11,7 +11,7 @@
  * a target that the current tilt puts out of reach holds the joints and flags it. An
  * engaged arm whose link is silent for the model's timeout parks and flags "link lost".
  * An engaged arm also parks when the IMU gives no usable sample for APP_IMU_STALE_TICKS
- * ticks (absent, not sampling, data frozen, or at full scale) or a servo stops following its goal
+ * ticks (absent, not sampling, or at full scale) or a servo stops following its goal
  * (servo_track.h); engage is refused while either stands.
  * The heartbeat reports the imu, imu_saturated and servo_tracking bits if they stood at
  * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
@@ -26,7 +26,6 @@
 #include <stdbool.h>
 #include <stdint.h>
 
-#include "imu_mpu6050.h"
 #include "llcp.h"
 #include "port.h"
 #include "servo_bus.h"
@@ -40,7 +39,6 @@ extern "C" {
 /* cffi:begin */
 #define APP_IMU_RETRY_MS 1000
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
-#define APP_IMU_SAME_SAMPLES 10        /* new samples with the very same 14 bytes: data frozen */
 #define APP_LINK_BYTES_PER_POLL 256    /* a flood of link bytes cannot starve the tick */
 
 typedef struct {
@@ -64,8 +62,6 @@ typedef struct {
     uint32_t imu_retry_us;
     uint16_t imu_errors;
     uint16_t imu_stale;            /* ticks in a row without a usable sample (saturates) */
-    uint16_t imu_same;             /* new samples in a row identical to the one before (saturates) */
-    mpu_raw_t imu_last;            /* the sample before */
     bool imu_saturated;            /* the latest sample had an axis at full scale */
     uint32_t imu_samples_used;
     uint16_t faults_since_heartbeat;   /* held fault bits seen at ticks since the last heartbeat */

@@ -140,14 +140,6 @@ static void read_link(app_t *app)
 
 /* ------------------------------------------------------------------ tick */
 
-static bool same_sample(const mpu_raw_t *a, const mpu_raw_t *b)
-{
-    for (int i = 0; i < 3; ++i) {
-        if (a->accel[i] != b->accel[i] || a->gyro[i] != b->gyro[i]) return false;
-    }
-    return a->temperature == b->temperature;
-}
-
 /* A tick without a usable sample: the attitude holds. */
 static void imu_stale_tick(app_t *app)
 {
@@ -168,18 +160,8 @@ static void sample_imu(app_t *app)
         return;
     }
     app->imu_saturated = mpu_saturated(&raw);
-    if (raw.fresh) {
-        /* a real sensor's noise changes some bit of every sample: the very same 14 bytes
-         * many times over are a converter that stopped, though data-ready still fires */
-        if (same_sample(&raw, &app->imu_last)) {
-            if (app->imu_same < UINT16_MAX) app->imu_same++;
-        } else {
-            app->imu_same = 0;
-        }
-        app->imu_last = raw;
-    }
-    if (!raw.fresh || app->imu_saturated || app->imu_same >= APP_IMU_SAME_SAMPLES) {
-        imu_stale_tick(app);   /* no new sample, a frozen one, or one whose true value is unknown */
+    if (!raw.fresh || app->imu_saturated) {
+        imu_stale_tick(app);   /* no new sample, or one whose true value is unknown */
         return;
     }
     app->imu_stale = 0;
