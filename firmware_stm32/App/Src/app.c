@@ -92,7 +92,9 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     } else if (msg_set_position_unpack(payload, len, &set)) {
         on_set_position(app, &set);
     } else if (msg_drone_attitude_unpack(payload, len, &attitude)) {
-        app->drone_attitudes++;   /* keeps the link alive; not fused into the estimate yet */
+        app->drone_attitudes++;
+        (void)stab_drone_attitude(&app->stab, attitude.seq, attitude.stamp_us, attitude.roll, attitude.pitch,
+                                  now_us(app));
     } else {
         app->commands_ignored++;
     }
@@ -140,7 +142,7 @@ static void sample_imu(app_t *app)
         return;
     }
     mpu_scale(&raw, accel, gyro);
-    stab_sample(&app->stab, accel, gyro);
+    stab_sample(&app->stab, accel, gyro, now_us(app), app->engaged);
 }
 
 /* The joints to command this tick and their speed. */
