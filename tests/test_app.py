@@ -200,7 +200,8 @@ def test_unreachable_set_position_is_flagged_and_the_arm_holds():
         hb = run_to_next_heartbeat(board)
         assert hb["unreachable"] == 1 and hb["engaged"] == 1, far
         assert [hb["set_x"], hb["set_y"], hb["set_z"]] == pytest.approx(TARGET)
-        assert shaft_units(board) == held
+        # held: stabilising on the IMU's noise may move a joint by one unit, no more
+        assert max(abs(a - b) for a, b in zip(shaft_units(board), held)) <= 1.0
     set_position(board, OTHER)
     t = board.time
     assert run_until(board, lambda: at_goal(board, log, t), 1.0) is not None

@@ -30,7 +30,9 @@ Where the documentation is silent this simulator chooses, and says so:
 - RESET while Lock = 1 gives the Range error and resets nothing (Lock lasts until
   power-off).
 - Motion is no-load: the position follows a speed-limited profile toward the goal,
-  optionally through a first-order lag. Compliance, punch and load are not modelled;
+  optionally through a first-order lag; with `deadband` the lagging shaft stops once it is
+  within the Compliance Margin of the profile (no torque there), so it rests up to that many
+  units short of the goal. Compliance, punch and load are not modelled;
   Overload can be injected with `AX12.overload`. In wheel mode the shaft turns at
   (Moving Speed bits 0-9) / 1023 of the no-load speed and the position wraps at 1024.
 - The LED blinks (`alarm_led_blinking`) while the last instruction's error bits or a
@@ -176,18 +178,20 @@ class AX12:
     voltage      supply voltage in V; scales the no-load speed and sets Present Voltage
     temperature  degrees C (set the attribute later to inject overheating)
     time_constant  s, first-order lag of the shaft behind the speed-limited profile (0 = none)
+    deadband     with a lag: the shaft stops within the CW/CCW Compliance Margin of the profile
     reply_to_bad_checksum  answer a corrupted instruction with the Checksum error, or stay silent
     table        register values to start from instead of the factory ones, e.g.
                  {"baud_rate": 9, "return_delay_time": 0}
     """
 
     def __init__(self, id: int = 1, *, position: float = 512.0, voltage: float = 12.0,
-                 temperature: float = 30.0, time_constant: float = 0.0,
+                 temperature: float = 30.0, time_constant: float = 0.0, deadband: bool = False,
                  reply_to_bad_checksum: bool = True, firmware_version: int = 0,
                  table: dict[str, int] | None = None):
         self.voltage = voltage
         self.temperature = temperature
         self.time_constant = time_constant
+        self.deadband = deadband
         self.reply_to_bad_checksum = reply_to_bad_checksum
         self.firmware_version = firmware_version   # not documented for the AX-12A
         self.overload = False       # fault injection: the load cannot be controlled
@@ -455,13 +459,15 @@ class AX12:
         return cap if units == 0 else min(units * RPM_PER_SPEED_UNIT * UNITS_PER_S_PER_RPM, cap)
 
     def step(self, dt: float) -> None:
-        """Advance the servo by dt seconds."""
+        """Advance the servo by dt seconds. (Reads the table by address: this runs for every
+        byte on the bus, so it avoids the by-name register helpers.)"""
         if not self.powered or dt <= 0:
             return
-        if self.condition_bits() & self.register("shutdown"):
-            self.set_register("torque_limit", 0)
+        t = self.table
+        if t[18] and self.condition_bits() & t[18]:               # Shutdown
+            t[34] = t[35] = 0                                      # Torque Limit
         start = self._pos
-        if self.register("torque_enable") and self.register("torque_limit") > 0:
+        if t[24] and (t[34] or t[35]):                             # Torque Enable, Torque Limit
             n = max(1, math.ceil(dt / MAX_SUBSTEP))
             for _ in range(n):
                 self._advance(dt / n)
@@ -470,20 +476,29 @@ class AX12:
         self._update_present(start, dt)
 
     def _advance(self, h: float) -> None:
-        if self.wheel_mode:
-            speed = self.register("moving_speed")
+        t = self.table
+        if not (t[6] or t[7] or t[8] or t[9]):                    # wheel mode: both angle limits 0
+            speed = t[32] | t[33] << 8
             direction = -1.0 if speed & 0x400 else 1.0     # bit 10 set = CW = decreasing
             rate = (speed & 0x3FF) / 1023 * self.max_speed()
             self._pos = self._profile = (self._pos + direction * rate * h) % 1024
             return
-        goal = self.register("goal_position")
-        travel = self.commanded_speed() * h
+        goal = t[30] | t[31] << 8
+        units = (t[32] | t[33] << 8) & 0x3FF
+        cap = self.max_speed()
+        speed = cap if units == 0 else min(units * RPM_PER_SPEED_UNIT * UNITS_PER_S_PER_RPM, cap)
+        travel = speed * h
         if abs(goal - self._profile) <= travel:
             self._profile = float(goal)
         else:
             self._profile += math.copysign(travel, goal - self._profile)
         if self.time_constant > 0:
-            self._pos += (self._profile - self._pos) * -math.expm1(-h / self.time_constant)
+            err = self._profile - self._pos
+            if self.deadband:
+                margin = t[27 if err > 0 else 26]     # CCW / CW Compliance Margin
+                if abs(err) <= margin:
+                    return
+            self._pos += err * -math.expm1(-h / self.time_constant)
         else:
             self._pos = self._profile
 
@@ -491,19 +506,22 @@ class AX12:
         return min(max(round(self._pos), 0), 1023)
 
     def _update_present(self, start: float, dt: float) -> None:
-        self.set_register("present_position", self._quantised())
+        t = self.table
+        q = self._quantised()
+        t[36], t[37] = q & 0xFF, q >> 8                              # Present Position
         rate = (self._pos - start) / dt if dt > 0 else 0.0      # units/s, + = CCW
         magnitude = min(round(abs(rate) / UNITS_PER_S_PER_RPM / RPM_PER_SPEED_UNIT), 1023)
-        self.set_register("present_speed", magnitude | (0x400 if rate < 0 else 0))
-        self.set_register("present_voltage", min(max(round(self.voltage * 10), 0), 255))
-        self.set_register("present_temperature", min(max(round(self.temperature), 0), 255))
-        driven = self.register("torque_enable") and self.register("torque_limit") > 0
-        if self.wheel_mode:
-            moving = driven and (self.register("moving_speed") & 0x3FF) > 0
+        speed = magnitude | (0x400 if rate < 0 else 0)
+        t[38], t[39] = speed & 0xFF, speed >> 8                      # Present Speed
+        t[42] = min(max(round(self.voltage * 10), 0), 255)           # Present Voltage
+        t[43] = min(max(round(self.temperature), 0), 255)            # Present Temperature
+        driven = t[24] and (t[34] or t[35])
+        if not (t[6] or t[7] or t[8] or t[9]):
+            moving = driven and ((t[32] | t[33] << 8) & 0x3FF) > 0
         else:
-            goal = self.register("goal_position")
-            moving = driven and (self._profile != goal or self._quantised() != goal)
-        self.set_register("moving", int(moving))
+            goal = t[30] | t[31] << 8
+            moving = driven and (self._profile != goal or q != goal)
+        t[46] = int(bool(moving))                                    # Moving
 
 
 class AX12Bus:
@@ -512,12 +530,18 @@ class AX12Bus:
     baud  bus speed in bit/s; a servo listens only if its Baud Rate register is within 3 %
     echo  the master also receives its own bytes (a single-wire UART without an echo
           filter), at the times they leave the wire
+    lazy  step the servos only when a byte reaches them, on power switching and on `sync()`
+          (long simulations: far fewer steps; the motion is integrated over longer
+          intervals, in substeps of at most MAX_SUBSTEP). Call sync() before reading a
+          servo's state.
     """
 
-    def __init__(self, servos=(), *, baud: float = 1_000_000, echo: bool = False):
+    def __init__(self, servos=(), *, baud: float = 1_000_000, echo: bool = False, lazy: bool = False):
         self.baud = baud
         self.echo = echo
+        self.lazy = lazy
         self.time = 0.0
+        self._servo_time = 0.0
         self.servos: list[AX12] = []
         self._tx: deque[tuple[float, int]] = deque()   # master bytes: (end of stop bit, byte)
         self._tx_end = 0.0
@@ -576,6 +600,7 @@ class AX12Bus:
         while self._tx and self._tx[0][0] <= end:
             t, byte = self._tx.popleft()
             self._move_to(t)
+            self.sync()
             for servo in self.servos:
                 if servo.hears(self.baud):
                     reply = servo.receive(byte, t)
@@ -593,6 +618,7 @@ class AX12Bus:
 
     def power(self, on: bool) -> None:
         """Switch the servos' supply (the board's MOSFET)."""
+        self.sync()
         for servo in self.servos:
             if on and not servo.powered:
                 servo.power_on()
@@ -600,14 +626,22 @@ class AX12Bus:
                 servo.power_off()
 
     def set_supply_voltage(self, volts: float) -> None:
+        self.sync()
         for servo in self.servos:
             servo.voltage = volts
 
     def _move_to(self, t: float) -> None:
         if t > self.time:
-            for servo in self.servos:
-                servo.step(t - self.time)
             self.time = t
+            if not self.lazy:
+                self.sync()
+
+    def sync(self) -> None:
+        """Bring the servos' motion up to the bus time."""
+        if self.time > self._servo_time:
+            for servo in self.servos:
+                servo.step(self.time - self._servo_time)
+            self._servo_time = self.time
 
     def _send_reply(self, start: float, data: bytes) -> None:
         for k, byte in enumerate(data):

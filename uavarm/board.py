@@ -19,6 +19,7 @@ import numpy as np
 
 from . import ax12_sim, firmware, llcp, messages
 from .model import attitude, config, servo as servo_map
+from .imu_model import Mpu6050Sensor
 from .mpu6050_sim import Mpu6050
 
 US = 1_000_000
@@ -100,12 +101,15 @@ class SimBoard:
     per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
     and still), Rocking, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
-    the last heartbeats (long runs such as the SITL). A motion gives the base frame's
-    attitude(t) and imu(t) in base axes; the board turns the latter into the IMU's axes
-    with the model's mounting rotation."""
+    the last heartbeats (long runs such as the SITL); sensor: the MPU-6050's sensor model
+    (uavarm.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
+    gives the base frame's attitude(t) and imu(t) in base axes; the board turns the latter
+    into the IMU's axes with the model's mounting rotation and the sensor model samples it
+    at the chip's internal rate."""
 
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
-                 poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True):
+                 poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True,
+                 sensor: Mpu6050Sensor | None = None):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -117,6 +121,7 @@ class SimBoard:
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo)
         self.bus.power(False)
         self.motion = motion or Gravity()
+        self.sensor = sensor or Mpu6050Sensor("white", seed=0)
         self._base_to_imu = np.array(attitude.mounting(m).T.tolist(), dtype=float)
         self.start_us = start_us
         self.poll_us = poll_us
@@ -171,12 +176,17 @@ class SimBoard:
             self.lib.host_port_servo_push(self.hp, rx, len(rx))
         if self.now_us >= self._next_tick:
             self._next_tick += self.tick_us
-            accel, gyro = self.motion.imu(self.time)
-            self.imu.sample(self._base_to_imu @ accel, self._base_to_imu @ gyro)
+            accel, gyro = self.sensor.read(self.time, self._imu_truth, self.imu.dlpf_cfg, self.imu.smplrt_div)
+            self.imu.sample(accel, gyro)
             self.lib.app_request_tick(self.app)
         self._clock()
         self.lib.app_poll(self.app)
         self._collect()
+
+    def _imu_truth(self, t: float):
+        """The true specific force (g) and rates (rad/s) at time t, IMU axes."""
+        accel, gyro = self.motion.imu(t)
+        return self._base_to_imu @ np.asarray(accel, dtype=float), self._base_to_imu @ np.asarray(gyro, dtype=float)
 
     def _clock(self) -> None:
         self.hp.now_us = (self.start_us + self.now_us) & 0xFFFFFFFF

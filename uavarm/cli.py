@@ -1,4 +1,5 @@
-"""The `uavarm` command: codegen, demo, link (talk to a board), sitl (a simulated board)."""
+"""The `uavarm` command: codegen, demo, link (talk to a board), sitl (a simulated board),
+sim (the closed-loop simulator's table and plots), workspace (the reachable-region plot)."""
 from __future__ import annotations
 
 import argparse
@@ -82,6 +83,26 @@ def main(argv=None) -> int:
     st.add_argument("scenario", nargs="?", default="level",
                     help="level (default), tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (bench tilting)")
     st.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second")
+    sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
+    sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/scenarios.py)")
+    sm.add_argument("--estimator", default=None,
+                    help="estimator preset: complementary, quaternion, link (default: the model file as it is)")
+    sm.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                    help="edit a model key for this run, e.g. estimator.complementary_gyro_weight=0.98")
+    sm.add_argument("--seconds", type=float, default=60.0, help="scored seconds per seed")
+    sm.add_argument("--settle", type=float, default=5.0, help="seconds after engage not scored")
+    sm.add_argument("--seeds", type=int, default=1)
+    sm.add_argument("--seed", type=int, default=0, help="first seed")
+    sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,
+                    help="IMU error profile (default: the scenario's)")
+    sm.add_argument("--link-attitude", choices=["auto", "on", "off"], default="auto",
+                    help="send the drone's attitude over the link (auto: when the firmware fuses it)")
+    sm.add_argument("--poll-us", type=int, default=250, help="simulated main-loop period")
+    sm.add_argument("--jobs", type=int, default=1, help="seeds run in parallel")
+    sm.add_argument("--plots", default="build/sim-plots", help="folder for the PNG plots ('' for none)")
+    ws = sub.add_parser("workspace", help="plot the arm's reachable region (side and top views)")
+    ws.add_argument("--model", default=None, help="model file (default model/manipulator.toml)")
+    ws.add_argument("--out", default="build/workspace.png")
     args, rest = ap.parse_known_args(argv)
     if args.command == "codegen":
         from .codegen.generate import main as codegen_main
@@ -92,6 +113,23 @@ def main(argv=None) -> int:
         if (args.action == "goto") != (len(args.xyz) == 3) or (args.action != "goto" and args.xyz):
             ap.error("goto takes exactly X Y Z; the other actions take none")
         return link(args)
+    if args.command == "sim":
+        from .sim_report import sim_command
+        if args.seconds <= 0 or args.seeds < 1 or args.settle < 0 or args.poll_us < 10:
+            ap.error("--seconds must be positive, --seeds at least 1, --settle not negative, --poll-us >= 10")
+        return sim_command(args)
+    if args.command == "workspace":
+        from pathlib import Path
+        from .model import config
+        from .workspace import plot
+        try:
+            model = config.load(args.model) if args.model else config.load()
+        except config.ModelError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 2
+        counts = plot(model, Path(args.out))
+        print(f"wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + " sampled poses")
+        return 0
     if args.command == "sitl":
         from . import sitl
         try:

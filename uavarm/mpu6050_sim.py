@@ -4,12 +4,15 @@ Written from the InvenSense register map (RM-MPU-6000A rev 4.2) and datasheet (P
 rev 3.4), independently of the firmware's driver: WHO_AM_I reads 0x68, the chip powers up
 asleep (PWR_MGMT_1 = 0x40) and its data registers stay at 0 until woken, and samples are
 big-endian int16 scaled by the full-scale range the configuration registers select.
-This is the ideal sensor; noise, bias and vibration belong to the closed-loop simulator.
+The values it latches come from the sensor model (uavarm.imu_model: noise, bias, scale,
+vibration, the low-pass filter and the decimation that CONFIG and SMPLRT_DIV select).
 """
 from __future__ import annotations
 
 import math
 
+REG_SMPLRT_DIV = 0x19
+REG_CONFIG = 0x1A
 REG_GYRO_CONFIG = 0x1B
 REG_ACCEL_CONFIG = 0x1C
 REG_ACCEL_XOUT_H = 0x3B
@@ -42,6 +45,14 @@ class Mpu6050:
     @property
     def asleep(self) -> bool:
         return bool(self.regs[REG_PWR_MGMT_1] & SLEEP)
+
+    @property
+    def dlpf_cfg(self) -> int:
+        return self.regs[REG_CONFIG] & 7
+
+    @property
+    def smplrt_div(self) -> int:
+        return self.regs[REG_SMPLRT_DIV]
 
     @property
     def accel_lsb_per_g(self) -> int:

@@ -73,6 +73,8 @@ void stab_attitude(const stab_t *s, float *roll, float *pitch);
 kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3]);
 /* The same for a level base (no tilt): is target_level reachable at all? */
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3]);
+/* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
+void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* cffi:end */
 
 #ifdef __cplusplus

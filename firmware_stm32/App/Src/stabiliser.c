@@ -194,3 +194,9 @@ kin_status_t stab_solve_level(const float target_level[3], const float q_now[3],
 {
     return solve_base(target_level, q_now, q_out);
 }
+
+void stab_attitude(const stab_t *s, float *roll, float *pitch)
+{
+    *roll = s->attitude.roll;
+    *pitch = s->attitude.pitch;
+}

@@ -1,0 +1,171 @@
+"""The MPU-6050 sensor model (uavarm/imu_model.py) against its datasheet figures.
+
+Oracles: the numbers of PS-MPU-6000A rev 3.4 and RM-MPU-6000A rev 4.2 (typed here, not
+imported from the module under test), scipy.signal.welch for noise densities, scipy's
+Butterworth design for the filter's response, and sampling theory for where a tone aliases.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from uavarm import imu_model
+from uavarm.imu_model import ImuDraw, ImuErrors, Mpu6050Sensor, Tone
+
+# Datasheet figures (PS-MPU-6000A rev 3.4, 6.1 / 6.2)
+GYRO_DENSITY_DPS = 0.005
+ACCEL_DENSITY_G = 400e-6
+# RM-MPU-6000A rev 4.2, register 26: DLPF_CFG -> accel bandwidth (Hz), delay (ms)
+ACCEL_DLPF = {1: (184, 2.0), 2: (94, 3.0), 3: (44, 4.9), 4: (21, 8.5), 5: (10, 13.8), 6: (5, 19.0)}
+GYRO_DLPF = {1: (188, 1.9), 2: (98, 2.8), 3: (42, 4.8), 4: (20, 8.3), 5: (10, 13.4), 6: (5, 18.6)}
+
+
+def still(t):
+    return np.array([0.0, 0.0, 1.0]), np.zeros(3)
+
+
+def record(sensor, truth, seconds, cfg, div, rate=1000.0):
+    """The output registers read at `rate` Hz for `seconds`: (n, 3) accel, (n, 3) gyro."""
+    acc, gyro = [], []
+    for k in range(1, round(seconds * rate) + 1):
+        a, g = sensor.read(k / rate, truth, cfg, div)
+        acc.append(a)
+        gyro.append(g)
+    return np.array(acc), np.array(gyro)
+
+
+def test_white_noise_density_matches_the_datasheet():
+    """In the pass band of the widest filter, at the 1 kHz output rate, the one-sided PSD is
+    the datasheet's density squared, on every axis."""
+    sensor = Mpu6050Sensor("white", seed=1)
+    acc, gyro = record(sensor, still, 30.0, cfg=1, div=0)
+    for data, density in ((acc, ACCEL_DENSITY_G), (np.degrees(gyro), GYRO_DENSITY_DPS)):
+        f, pxx = signal.welch(data - data.mean(axis=0), fs=1000.0, nperseg=1024, axis=0)
+        band = (f > 5) & (f < 60)
+        measured = np.sqrt(pxx[band].mean(axis=0))
+        assert np.allclose(measured, density, rtol=0.1), (measured, density)
+
+
+def test_white_profile_has_no_bias_and_noise_through_the_firmwares_filter():
+    """The SimBoard's default: zero mean; RMS at the 44 Hz setting is density * sqrt(noise
+    bandwidth of a 2nd-order Butterworth = pi/(2 sqrt 2) f_c), e.g. the datasheet's own
+    0.05 deg/s at ~100 Hz scales to ~0.035 deg/s."""
+    sensor = Mpu6050Sensor("white", seed=2)
+    acc, gyro = record(sensor, still, 20.0, cfg=3, div=9, rate=100.0)
+    assert np.allclose(acc.mean(axis=0), [0, 0, 1], atol=1e-3)
+    assert np.allclose(np.degrees(gyro).mean(axis=0), 0, atol=0.01)
+    enbw = math.pi / (2 * math.sqrt(2))
+    assert np.allclose(acc.std(axis=0), ACCEL_DENSITY_G * math.sqrt(enbw * 44), rtol=0.15)
+    assert np.allclose(np.degrees(gyro).std(axis=0), GYRO_DENSITY_DPS * math.sqrt(enbw * 42), rtol=0.15)
+
+
+@pytest.mark.parametrize("profile, gyro_dps, accel_g, scale", [
+    ("datasheet", 20.0, (0.050, 0.050, 0.080), 0.03),
+    ("calibrated", 3.0, (0.005, 0.005, 0.009), 0.03),
+])
+def test_biases_and_scale_errors_stay_in_their_ranges_and_fill_them(profile, gyro_dps, accel_g, scale):
+    draws = [Mpu6050Sensor(profile, seed=s).draw for s in range(300)]
+    gyro = np.degrees([d.gyro_bias for d in draws])
+    accel = np.array([d.accel_bias for d in draws])
+    gscale = np.array([d.gyro_scale for d in draws]) - 1
+    assert np.all(np.abs(gyro) <= gyro_dps) and np.all(np.abs(gyro).max(axis=0) > 0.9 * gyro_dps)
+    assert np.all(np.abs(accel) <= accel_g) and np.all(np.abs(accel).max(axis=0) > 0.9 * np.array(accel_g))
+    assert np.all(np.abs(gscale) <= scale) and np.all(np.abs(gscale).max(axis=0) > 0.9 * scale)
+
+
+def test_a_biased_sensor_reads_its_bias():
+    sensor = Mpu6050Sensor("datasheet", seed=5)
+    sensor.draw = ImuDraw(sensor.draw.gyro_bias, sensor.draw.accel_bias, sensor.draw.gyro_scale,
+                          sensor.draw.accel_scale, ())          # no vibration: means only
+    acc, gyro = record(sensor, still, 5.0, cfg=3, div=9, rate=100.0)
+    d = sensor.draw
+    assert np.allclose(acc.mean(axis=0), d.accel_bias + [0, 0, d.accel_scale[2]], atol=1e-3)
+    assert np.allclose(gyro.mean(axis=0), d.gyro_bias, atol=math.radians(0.01))
+
+
+def _sine_gain(cfg, freq, axis):
+    """Steady-state amplitude of a unit sine at freq through DLPF_CFG cfg (1 kHz output)."""
+    sensor = Mpu6050Sensor("ideal", seed=0)
+    w = 2 * math.pi * freq
+
+    def truth(t):
+        s = math.sin(w * t)
+        return np.array([s, 0.0, 0.0]), np.array([s, 0.0, 0.0])
+    acc, gyro = record(sensor, truth, 2.0 + 5.0 / freq, cfg=cfg, div=0)
+    out = (acc if axis == "accel" else gyro)[-1000 - round(1000 / freq):, 0]
+    return (out.max() - out.min()) / 2
+
+
+@pytest.mark.parametrize("cfg", [2, 3, 4, 5])
+@pytest.mark.parametrize("axis, table", [("accel", ACCEL_DLPF), ("gyro", GYRO_DLPF)])
+def test_dlpf_bandwidth_is_the_register_maps(cfg, axis, table):
+    """-3 dB at the table's bandwidth; the pass band passes, the stop band stops."""
+    bw = table[cfg][0]
+    assert _sine_gain(cfg, bw, axis) == pytest.approx(1 / math.sqrt(2), abs=0.03)
+    assert _sine_gain(cfg, bw / 10, axis) == pytest.approx(1.0, abs=0.01)
+
+
+def test_dlpf_delay_at_the_projects_setting():
+    """A ramp comes out late by the filter's delay: at DLPF_CFG 3 the table says 4.9 ms
+    (accel) and 4.8 ms (gyro); the 2nd-order model has 5.1 / 5.4 ms."""
+    sensor = Mpu6050Sensor("ideal", seed=0)
+
+    def ramp(t):
+        return np.array([t, 0.0, 0.0]), np.array([t, 0.0, 0.0])
+    acc, gyro = record(sensor, ramp, 1.0, cfg=3, div=0)
+    t_end = 1.0
+    assert (t_end - acc[-1, 0]) * 1e3 == pytest.approx(ACCEL_DLPF[3][1], abs=0.5)
+    assert (t_end - gyro[-1, 0]) * 1e3 == pytest.approx(GYRO_DLPF[3][1], abs=0.8)
+
+
+def test_propeller_tone_aliases_to_the_folded_frequency_with_the_filters_gain():
+    """An 83 Hz tone, filtered at DLPF_CFG 3 and sampled at 100 Hz, reads as a 17 Hz tone of
+    amplitude |H(83 Hz)| (scipy's 2nd-order Butterworth at 44 Hz, 1 kHz)."""
+    sensor = Mpu6050Sensor("ideal", seed=0)
+    amp = 0.2
+    sensor.draw = ImuDraw(np.zeros(3), np.zeros(3), np.ones(3), np.ones(3),
+                          (Tone(83.0, 0.3, np.array([0.0, 0.0, amp]), np.zeros(3)),))
+    acc, _ = record(sensor, still, 20.48, cfg=3, div=9, rate=100.0)
+    z = acc[:, 2] - acc[:, 2].mean()
+    f, pxx = signal.periodogram(z, fs=100.0, window="hann", scaling="spectrum")
+    assert f[np.argmax(pxx)] == pytest.approx(17.0, abs=0.1)
+    b, a = signal.butter(2, 44.0, fs=1000.0)
+    _, h = signal.freqz(b, a, worN=[83.0], fs=1000.0)
+    t = np.arange(1, len(z) + 1) / 100.0
+    basis = np.c_[np.sin(2 * math.pi * 17.0 * t), np.cos(2 * math.pi * 17.0 * t)]
+    coef, *_ = np.linalg.lstsq(basis, z, rcond=None)
+    assert np.hypot(*coef) == pytest.approx(amp * abs(h[0]), rel=0.03)
+
+
+def test_vibration_tones_are_in_the_propeller_band():
+    for seed in range(50):
+        tones = Mpu6050Sensor("calibrated", seed=seed).draw.tones
+        assert len(tones) == 4
+        assert all(57.0 <= t.freq <= 97.0 for t in tones)
+        assert max(t.freq for t in tones) - min(t.freq for t in tones) <= 6.0
+
+
+def test_output_updates_every_smplrt_div_plus_one_internal_samples():
+    sensor = Mpu6050Sensor("white", seed=3)
+    acc, _ = record(sensor, still, 0.2, cfg=3, div=9)
+    changes = np.flatnonzero(np.any(np.diff(acc, axis=0) != 0, axis=1)) + 2   # ms of each update
+    assert np.all(changes % 10 == 0)
+    assert len(changes) == 20          # at 10, 20, ..., 200 ms
+
+
+def test_seeded_and_deterministic():
+    a = record(Mpu6050Sensor("datasheet", seed=7), still, 0.5, cfg=3, div=9, rate=100.0)
+    b = record(Mpu6050Sensor("datasheet", seed=7), still, 0.5, cfg=3, div=9, rate=100.0)
+    c = record(Mpu6050Sensor("datasheet", seed=8), still, 0.5, cfg=3, div=9, rate=100.0)
+    assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
+    assert not np.array_equal(a[0], c[0])
+
+
+def test_profiles_are_named_and_the_vibration_can_be_turned_off():
+    assert set(imu_model.PROFILES) == {"ideal", "white", "calibrated", "datasheet"}
+    e = imu_model.PROFILES["calibrated"].without_vibration()
+    assert isinstance(e, ImuErrors) and not e.vibration
+    assert Mpu6050Sensor(e, seed=0).draw.tones == ()

@@ -1,0 +1,201 @@
+"""The closed-loop simulator (uavarm/sim.py, variants.py, sim_report.py): its figure of
+merit against an independent computation, its link messages, firmware variants, and short
+closed-loop runs of every scenario with loose bounds (a benchmark, not a timed test: the
+full table is `make sim-report`)."""
+from __future__ import annotations
+
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+from uavarm import drone, scenarios, sim, sim_report, variants
+from uavarm.model import config
+
+MODEL = config.load()
+SHORT = sim.Settings(seconds=3.0, settle=2.0)
+
+
+def dh(theta, alpha, r, d):
+    ct, st, ca, sa = math.cos(theta), math.sin(theta), math.cos(alpha), math.sin(alpha)
+    return np.array([[ct, -st * ca, st * sa, r * ct], [st, ct * ca, -ct * sa, r * st],
+                     [0, sa, ca, d], [0, 0, 0, 1]])
+
+
+def fk_dh(m, q):
+    """SPEC.md's DH chain, as 4x4 matrices."""
+    T = dh(-q[0], math.pi / 2, 0, -m.L1) @ dh(-math.pi / 2 + q[1], 0, m.L2, 0) @ dh(q[2], 0, m.L3, 0)
+    return T[:3, 3]
+
+
+def rx(a):
+    return np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+
+
+def ry(a):
+    return np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+
+
+def test_ee_error_against_an_independent_computation():
+    rng = np.random.default_rng(0)
+    n = 200
+    q = rng.uniform(-1.5, 1.5, (n, 3))
+    roll, pitch = rng.uniform(-0.4, 0.4, (2, n))
+    p = np.array([60.0, 20.0, -120.0])
+    got = sim.ee_error(MODEL, q, roll, pitch, p)
+    off = np.array(MODEL.mount_offset)
+    for i in range(n):
+        R = ry(pitch[i]) @ rx(roll[i])
+        want = R @ (off + fk_dh(MODEL, q[i])) - (off + p)
+        assert np.allclose(got[i], want, atol=1e-9)
+
+
+def test_a_perfectly_compensated_tilt_scores_zero():
+    """If the joints put the end effector at R^T (o + p) - o (the set-position semantics),
+    the error is zero whatever the tilt."""
+    from uavarm.model import kinematics
+    import sympy as sp
+    rng = np.random.default_rng(1)
+    off = np.array(MODEL.mount_offset)
+    p = np.array([60.0, 20.0, -120.0])
+    f = sp.lambdify(kinematics.TARGET_SYMBOLS, [c.q for c in kinematics.ik(MODEL).candidates][0], "numpy")
+    for roll, pitch in rng.uniform(-0.3, 0.3, (20, 2)):
+        R = ry(pitch) @ rx(roll)
+        p_base = R.T @ (off + p) - off
+        q = np.array(f(*p_base), dtype=float)
+        assert np.allclose(fk_dh(MODEL, q), p_base, atol=1e-6)
+        assert np.linalg.norm(sim.ee_error(MODEL, q[None], np.array([roll]), np.array([pitch]), p)) < 1e-6
+
+
+def test_link_attitude_messages_rate_delay_sequence_and_error():
+    p = scenarios.LinkParams(rate_hz=80.0, delay_ms=20.0, jitter_ms=5.0, noise_deg=0.2, bias_deg=0.3)
+    f = drone.hover(30.0, np.random.default_rng(2))
+    link = sim.LinkAttitude(p, f, np.random.default_rng(3))
+    msgs, arrivals = [], []
+    while link.next_time < 29.0:
+        arrivals.append(link.next_time)
+        msgs.append(link.pop())
+    seq = np.array([m["seq"] for m in msgs])
+    assert np.all((np.diff(seq) % 65536) == 1)
+    stamps = np.array([m["stamp_us"] for m in msgs], dtype=np.int64)
+    assert np.all((np.diff(stamps) % 2 ** 32) == 12500)                 # 80 Hz in the drone's clock
+    t_meas = np.arange(1, len(msgs) + 1) / 80.0
+    delay = np.array(arrivals) - t_meas
+    assert np.all(np.diff(arrivals) >= 0)                                # a serial link keeps order
+    assert delay.min() >= 0.015 - 1e-9 and delay.max() <= 0.025 + 1e-9
+    assert len(msgs) == pytest.approx(29.0 * 80, abs=3)
+    idx = np.round(t_meas * drone.RATE).astype(int)
+    err = np.degrees(np.array([[m["roll"], m["pitch"]] for m in msgs]) - np.c_[f.roll[idx], f.pitch[idx]])
+    assert np.all(np.abs(err.mean(axis=0)) <= 0.3 + 0.02)
+    assert err.std(axis=0) == pytest.approx([0.2, 0.2], rel=0.15)
+
+
+# ---------------------------------------------------------------- variants
+
+def test_model_edits_keep_the_rest_of_the_file():
+    text = config.DEFAULT_MODEL.read_text()
+    new = variants.edit_text(text, "estimator.complementary_gyro_weight", 0.98)
+    a, b = tomllib.loads(text), tomllib.loads(new)
+    assert b["estimator"]["complementary_gyro_weight"] == 0.98
+    b["estimator"]["complementary_gyro_weight"] = a["estimator"]["complementary_gyro_weight"]
+    assert a == b
+    assert len(new.splitlines()) == len(text.splitlines())
+    new = variants.edit_text(text, "mount.offset", [10.0, 0.0, -50.0])
+    assert tomllib.loads(new)["mount"]["offset"] == [10.0, 0.0, -50.0]
+
+
+@pytest.mark.parametrize("item, msg", [
+    ("estimator.no_such_gain=1", "no such key"),
+    ("estimatr.complementary_gyro_weight=0.9", "no such key"),
+    ("estimator.complementary_gyro_weight", "KEY=VALUE"),
+    ("geometry.L2=[1, ", "not a TOML value"),
+])
+def test_bad_edits_fail_with_the_key(item, msg):
+    with pytest.raises(variants.VariantError, match=msg):
+        variants.build(variants.edits(None, [item]))
+
+
+def test_set_values_parse_as_toml():
+    assert variants.edits(None, ["a.b=0.5", "a.c=true", "a.d=[1, 2]", "a.e=quaternion", 'a.f="x y"']) == \
+        {"a.b": 0.5, "a.c": True, "a.d": [1, 2], "a.e": "quaternion", "a.f": "x y"}
+    with pytest.raises(variants.VariantError, match="unknown estimator preset"):
+        variants.edits("kalman")
+
+
+def test_a_variant_is_generated_built_and_loaded():
+    v = variants.build(variants.edits(None, ["estimator.complementary_gyro_weight=0.98"]))
+    assert v.model.complementary_gyro_weight == 0.98
+    assert "0.98f" in (v.gen_dir / "estimator.h").read_text()
+    assert v.gen_dir.parent.name != "generated" and (v.gen_dir.parent / "manipulator.toml").exists()
+    again = variants.build(variants.edits(None, ["estimator.complementary_gyro_weight=0.98"]))
+    assert again.gen_dir == v.gen_dir
+
+
+@pytest.mark.parametrize("preset", sorted(variants.PRESETS))
+def test_presets_build_or_name_the_key_this_firmware_lacks(preset):
+    text = config.DEFAULT_MODEL.read_text()
+    data = tomllib.loads(text)
+    missing = [k for k in variants.PRESETS[preset] if k.split(".")[-1] not in data.get(k.split(".")[0], {})]
+    if missing:
+        with pytest.raises(variants.VariantError, match=missing[0].replace(".", r"\.")):
+            variants.build(variants.edits(preset))
+    else:
+        assert variants.build(variants.edits(preset)).model is not None
+
+
+# ---------------------------------------------------------------- closed loop
+
+def _run(scenario, changes=None, settings=SHORT, seed=0):
+    s = scenarios.load(scenario) if isinstance(scenario, str) else scenario
+    return sim.simulate(s, variants.build(changes or {}), seed=seed, settings=settings)
+
+
+def test_a_constant_tilt_with_an_ideal_imu_scores_the_servo_resolution(tmp_path):
+    """The whole chain's frames: a drone held at 12 deg roll, -7 deg pitch (a replayed log),
+    ideal IMU, mount offset 0 (so the firmware's rotation about the base is exact): what
+    remains is the servos' rounding and dead band, a unit or two at ~140 mm (~1 mm)."""
+    (tmp_path / "log.csv").write_text("t,roll,pitch,ax,ay,az\n0,12,-7,0,0,0\n30,12,-7,0,0,0\n")
+    (tmp_path / "s.toml").write_text('kind = "replay"\n[motion]\ncsv = "log.csv"\n[imu]\nprofile = "ideal"\n')
+    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0]})
+    m = run.metrics()
+    assert m["max"] < 1.5 and m["att_max"] < 0.05, m
+    assert not run.faults and run.out_of_reach_ticks == 0
+
+
+@pytest.mark.parametrize("scenario, att_rms_deg", [("bench", 2.0), ("hover", 6.0), ("manoeuvre", 10.0)])
+def test_each_scenario_closes_the_loop(scenario, att_rms_deg):
+    """Loose bounds that any working estimator meets: the arm follows (the error stays within
+    the uncompensated mount offset's swing), no faults, the estimate tracks."""
+    run = _run(scenario)
+    m = run.metrics()
+    assert m["seconds"] == pytest.approx(3.0, abs=0.02)
+    assert m["rms"] < 40.0 and m["max"] < 60.0, m
+    assert m["att_rms"] < att_rms_deg, m
+    assert not run.faults and run.out_of_reach_ticks == 0
+    assert run.last_heartbeat["engaged"] == 1
+
+
+def test_without_the_offset_bench_tilting_is_a_few_millimetres():
+    m = _run("bench", {"mount.offset": [0.0, 0.0, 0.0]}).metrics()
+    assert m["rms"] < 6.0, m
+
+
+def test_the_link_attitude_reaches_the_firmware():
+    s = scenarios.load("hover")
+    run = sim.simulate(s, variants.build({}), settings=sim.Settings(seconds=2.0, settle=1.0, drone_attitude=True))
+    sent = run.link_messages
+    assert sent == pytest.approx((1.5 + 3.0) * s.link.rate_hz, abs=5)
+    # every frame the drone sent was taken as a good frame (the keep-alives and commands too)
+    assert run.last_heartbeat["link_frames_ok"] >= sent - 60
+
+
+def test_pooled_summary_of_seeds():
+    runs = [_run("bench", seed=s, settings=sim.Settings(seconds=1.0, settle=1.0)) for s in (0, 1)]
+    row = sim_report.summarise(runs)
+    e = np.concatenate([np.linalg.norm(r.error_mm[r.scored], axis=1) for r in runs])
+    assert row.rms == pytest.approx(math.sqrt(np.mean(e ** 2)))
+    assert row.max == pytest.approx(e.max()) and row.seeds == 2
+    assert runs[0].error_mm.shape != runs[1].error_mm.shape or not np.array_equal(runs[0].error_mm, runs[1].error_mm)
+    md = sim_report.markdown_table([row])
+    assert md.count("\n") == 2 and "| bench tilting |" in md

@@ -1,0 +1,228 @@
+"""The MPU-6050 as a sensor: what its output registers hold for a given true motion.
+
+Uavarm.mpu6050_sim is the register file (what I2C sees); this module decides the numbers
+that go into it. The chip samples its sensors at an internal 1 kHz, passes them through the
+digital low-pass filter that CONFIG.DLPF_CFG selects, and updates the output registers with
+every (SMPLRT_DIV + 1)-th filtered sample: plain decimation, so whatever the DLPF leaves
+above half the output rate folds down (a 80 Hz propeller tone sampled at 100 Hz reads as
+20 Hz). The simulator reads DLPF_CFG and SMPLRT_DIV from the register file, i.e. the
+setting the firmware wrote.
+
+Figures (InvenSense PS-MPU-6000A rev 3.4, sections 6.1 and 6.2; RM-MPU-6000A rev 4.2,
+register 26):
+
+- gyro rate noise spectral density 0.005 deg/s/sqrt(Hz); initial zero-rate output (ZRO)
+  tolerance +-20 deg/s; sensitivity scale factor tolerance +-3 %;
+- accelerometer noise power spectral density 400 ug/sqrt(Hz); zero-g initial calibration
+  tolerance +-50 mg (X, Y), +-80 mg (Z); zero-g change over 0..70 C +-35 mg (X, Y),
+  +-60 mg (Z); sensitivity initial tolerance +-3 %, change over temperature +-0.02 %/C;
+- DLPF_TABLE below: bandwidth and delay of each DLPF_CFG.
+
+Modelling choices, stated:
+
+- The noise is white at the densities above over the 0..500 Hz band of the 1 kHz internal
+  rate, before the DLPF (the datasheet's "total RMS noise 0.05 deg/s at DLPF_CFG = 2" is
+  what 0.005 deg/s/sqrt(Hz) gives through a ~100 Hz filter, so the densities are pre-filter).
+- The DLPF is a 2nd-order Butterworth low-pass at the table's bandwidth (bilinear transform
+  with pre-warping at 1 kHz). Its delay at DC (sqrt(2) / (2 pi f_c)) is 5.1 ms at the
+  project's 44 Hz setting against the table's 4.9 ms, and 2.4 ms at 94 Hz against 3.0 ms; at
+  21 Hz and below the table's delays are shorter than any non-resonant filter of that
+  bandwidth can have (they cannot be group delays at DC), so only the bandwidth is matched.
+  DLPF_CFG 0 (260 Hz, gyro at 8 kHz) is approximated at the 1 kHz rate.
+- Biases and scale errors are drawn uniformly within +-range per axis, once per seeded
+  sensor. Profiles (PROFILES): `ideal` (none of it), `white` (noise only: the SimBoard's
+  default, so its data are never frozen), `calibrated` (the closed-loop simulator's
+  default: the accelerometer after a one-time six-position calibration, so what is left is
+  the datasheet's temperature drift for a +-10 C change since then, +-5 mg X/Y, +-9 mg Z
+  and +-0.2 % scale; the gyro uncalibrated, as the firmware does not calibrate it: ZRO
+  +-3 deg/s, the few deg/s real parts show well inside the +-20 deg/s tolerance, scale
+  +-3 %; propeller vibration on), `datasheet` (the full initial tolerances, +-20 deg/s,
+  +-50/+-80 mg, +-3 %, vibration on: a worst case).
+- Propeller vibration: one tone per motor (4) at a hover rotor frequency drawn in
+  57..97 Hz, each motor within +-3 Hz of it, random phases; amplitudes per motor
+  (VIBRATION_ACCEL_G, VIBRATION_GYRO_DPS) are an assumption for an arm base bolted to the
+  frame of a balanced 650-class quad (a few tenths of a g in all; flight controllers call
+  raw vibration of several g too much). Constant rotor speed: the tones do not follow
+  thrust.
+- No cross-axis sensitivity, nonlinearity, g-sensitivity of the gyro or temperature drift
+  during a run; quantisation is the register file's (int16 of the full-scale range).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+INTERNAL_RATE = 1000.0        # Hz: the sample rate SMPLRT_DIV divides (DLPF_CFG 1..6)
+
+# DLPF_CFG -> (accel bandwidth Hz, accel delay ms, gyro bandwidth Hz, gyro delay ms)
+DLPF_TABLE = {
+    0: (260.0, 0.0, 256.0, 0.98),
+    1: (184.0, 2.0, 188.0, 1.9),
+    2: (94.0, 3.0, 98.0, 2.8),
+    3: (44.0, 4.9, 42.0, 4.8),
+    4: (21.0, 8.5, 20.0, 8.3),
+    5: (10.0, 13.8, 10.0, 13.4),
+    6: (5.0, 19.0, 5.0, 18.6),
+}
+
+GYRO_NOISE_DPS_RTHZ = 0.005
+ACCEL_NOISE_G_RTHZ = 400e-6
+ACCEL_ZERO_G_TOLERANCE_G = (0.050, 0.050, 0.080)
+GYRO_ZRO_TOLERANCE_DPS = 20.0
+SCALE_TOLERANCE = 0.03
+VIBRATION_BAND_HZ = (57.0, 97.0)
+VIBRATION_MOTORS = 4
+VIBRATION_MOTOR_SPREAD_HZ = 3.0
+VIBRATION_ACCEL_G = (0.05, 0.05, 0.10)      # per motor, amplitude, IMU axes
+VIBRATION_GYRO_DPS = (0.4, 0.4, 0.2)         # per motor, amplitude
+
+
+@dataclass(frozen=True)
+class ImuErrors:
+    """What a sensor of this kind gets wrong; ranges are +-half-widths of uniform draws."""
+    name: str
+    gyro_noise_dps_rthz: float = GYRO_NOISE_DPS_RTHZ
+    accel_noise_g_rthz: float = ACCEL_NOISE_G_RTHZ
+    gyro_bias_dps: float = 0.0
+    accel_bias_g: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_scale: float = 0.0
+    accel_scale: float = 0.0
+    vibration: bool = False
+    vibration_accel_g: tuple[float, float, float] = VIBRATION_ACCEL_G
+    vibration_gyro_dps: tuple[float, float, float] = VIBRATION_GYRO_DPS
+
+    def without_vibration(self) -> ImuErrors:
+        return replace(self, vibration=False)
+
+
+PROFILES = {
+    "ideal": ImuErrors("ideal", gyro_noise_dps_rthz=0.0, accel_noise_g_rthz=0.0),
+    "white": ImuErrors("white"),
+    "calibrated": ImuErrors("calibrated", gyro_bias_dps=3.0, accel_bias_g=(0.005, 0.005, 0.009),
+                            gyro_scale=SCALE_TOLERANCE, accel_scale=0.002, vibration=True),
+    "datasheet": ImuErrors("datasheet", gyro_bias_dps=GYRO_ZRO_TOLERANCE_DPS,
+                           accel_bias_g=ACCEL_ZERO_G_TOLERANCE_G, gyro_scale=SCALE_TOLERANCE,
+                           accel_scale=SCALE_TOLERANCE, vibration=True),
+}
+
+
+@dataclass(frozen=True)
+class Tone:
+    freq: float                      # Hz
+    phase: float                     # rad
+    accel_g: np.ndarray              # amplitude per IMU axis
+    gyro_rad_s: np.ndarray
+
+
+@dataclass(frozen=True)
+class ImuDraw:
+    """One sensor's realised errors (IMU axes; g and rad/s)."""
+    gyro_bias: np.ndarray
+    accel_bias: np.ndarray
+    gyro_scale: np.ndarray           # multiplicative: 1 + error
+    accel_scale: np.ndarray
+    tones: tuple[Tone, ...] = field(default_factory=tuple)
+
+
+def draw(errors: ImuErrors, rng: np.random.Generator) -> ImuDraw:
+    def sym(half):
+        return rng.uniform(-1.0, 1.0, 3) * np.asarray(half, dtype=float)
+    gyro_bias = np.radians(sym(errors.gyro_bias_dps))
+    accel_bias = sym(errors.accel_bias_g)
+    gyro_scale = 1.0 + sym(errors.gyro_scale)
+    accel_scale = 1.0 + sym(errors.accel_scale)
+    tones = ()
+    if errors.vibration:
+        hover = rng.uniform(*VIBRATION_BAND_HZ)
+        tones = tuple(Tone(float(np.clip(hover + rng.uniform(-1, 1) * VIBRATION_MOTOR_SPREAD_HZ, *VIBRATION_BAND_HZ)),
+                           float(rng.uniform(0, 2 * math.pi)),
+                           np.asarray(errors.vibration_accel_g, dtype=float),
+                           np.radians(np.asarray(errors.vibration_gyro_dps, dtype=float)))
+                      for _ in range(VIBRATION_MOTORS))
+    return ImuDraw(gyro_bias, accel_bias, gyro_scale, accel_scale, tones)
+
+
+def butterworth2(cutoff: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """(b, a) of a 2nd-order Butterworth low-pass, bilinear transform pre-warped at cutoff."""
+    k = math.tan(math.pi * min(cutoff, 0.499 * fs) / fs)
+    norm = 1.0 + math.sqrt(2.0) * k + k * k
+    b = np.array([k * k, 2 * k * k, k * k]) / norm
+    a = np.array([1.0, 2.0 * (k * k - 1.0) / norm, (1.0 - math.sqrt(2.0) * k + k * k) / norm])
+    return b, a
+
+
+class Mpu6050Sensor:
+    """A seeded MPU-6050 sensor. `read(t, truth, dlpf_cfg, smplrt_div)` runs the chip's
+    internal 1 kHz pipeline up to time t (s) and returns what its output registers hold:
+    (specific force in g, angular rate in rad/s), IMU axes. truth(t) gives the true
+    (specific force g, rate rad/s) in IMU axes at an internal sample time."""
+
+    def __init__(self, errors: ImuErrors | str = "white", seed: int = 0):
+        self.errors = PROFILES[errors] if isinstance(errors, str) else errors
+        self.rng = np.random.default_rng(seed)
+        self.draw = draw(self.errors, self.rng)
+        fs = INTERNAL_RATE
+        self.noise_std = np.array([self.errors.accel_noise_g_rthz] * 3
+                                  + [math.radians(self.errors.gyro_noise_dps_rthz)] * 3) * math.sqrt(fs / 2)
+        self._k = 0                  # next internal sample index (time k / fs)
+        self._cfg = None
+        self._z = np.zeros((2, 6))   # DLPF state (transposed direct form II), per axis
+        self.output = (np.zeros(3), np.zeros(3))
+
+    def _coefficients(self, cfg: int):
+        accel_bw, _, gyro_bw, _ = DLPF_TABLE[cfg]
+        ba, aa = butterworth2(accel_bw, INTERNAL_RATE)
+        bg, ag = butterworth2(gyro_bw, INTERNAL_RATE)
+        self._b = np.array([np.r_[[ba[i]] * 3, [bg[i]] * 3] for i in range(3)])
+        self._a = np.array([np.r_[[aa[i]] * 3, [ag[i]] * 3] for i in range(3)])
+
+    def _start(self, x: np.ndarray) -> None:
+        """Filter state at rest on x (the chip has been on long before the firmware asks)."""
+        b, a = self._b, self._a
+        self._z[1] = (b[2] - a[2]) * x
+        self._z[0] = (b[1] - a[1]) * x + self._z[1]
+
+    def sample_errors(self, t: np.ndarray) -> np.ndarray:
+        """(n, 6) additive vibration at the internal sample times t."""
+        out = np.zeros((len(t), 6))
+        for tone in self.draw.tones:
+            s = np.sin(2 * math.pi * tone.freq * t + tone.phase)[:, None]
+            out += s * np.r_[tone.accel_g, tone.gyro_rad_s]
+        return out
+
+    def read(self, t: float, truth, dlpf_cfg: int, smplrt_div: int):
+        dlpf_cfg = int(dlpf_cfg) & 7
+        dlpf_cfg = dlpf_cfg if dlpf_cfg in DLPF_TABLE else 0     # 7 is reserved
+        if dlpf_cfg != self._cfg:
+            self._coefficients(dlpf_cfg)
+        end = math.floor(t * INTERNAL_RATE + 1e-6)
+        if end < self._k:
+            return self.output
+        ks = np.arange(self._k, end + 1)
+        times = ks / INTERNAL_RATE
+        d = self.draw
+        x = np.empty((len(ks), 6))
+        for i, ti in enumerate(times):
+            acc, gyro = truth(float(ti))
+            x[i, :3] = acc
+            x[i, 3:] = gyro
+        x[:, :3] = x[:, :3] * d.accel_scale + d.accel_bias
+        x[:, 3:] = x[:, 3:] * d.gyro_scale + d.gyro_bias
+        x += self.sample_errors(times)
+        x += self.rng.standard_normal(x.shape) * self.noise_std
+        if self._cfg is None:
+            self._start(x[0])
+        self._cfg = dlpf_cfg
+        b, a, z = self._b, self._a, self._z
+        period = int(smplrt_div) + 1
+        for i, k in enumerate(ks):
+            xi = x[i]
+            y = b[0] * xi + z[0]
+            z[0] = b[1] * xi - a[1] * y + z[1]
+            z[1] = b[2] * xi - a[2] * y
+            if k % period == 0:
+                self.output = (y[:3].copy(), y[3:].copy())
+        self._k = end + 1
+        return self.output

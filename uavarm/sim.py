@@ -1,0 +1,230 @@
+"""Closed-loop simulator: the firmware (host build) on a simulated board under a flying drone.
+
+Everything reaches the firmware as on the hardware: IMU register bytes (uavarm.imu_model
+through uavarm.mpu6050_sim), servo-bus bytes (uavarm.ax12_sim with a small-signal lag and
+the compliance dead band), link bytes (LLCP: set_position kept alive every 0.25 s and, when
+the firmware fuses it, the drone's attitude at the scenario's rate, delay and error) and
+time. The drone (uavarm.drone) rotates the arm's base about its centre of rotation, at the
+model's mount offset from it.
+
+Figure of merit: the end effector's error in the gravity-aligned, heading-following frame
+centred on the drone's centre of rotation,
+
+    e = R (offset + FK(q_shafts)) - (offset + p)
+
+with R the true attitude (yaw removed), q_shafts the simulated servo shafts' joint angles and
+p the set position (level frame at the base's level position). Scored from `settle` seconds
+after engage, every IMU tick; plus the firmware's attitude estimate (stab_attitude) against
+the true base attitude.
+"""
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from . import ax12_sim, drone, imu_model, scenarios
+from .board import SimBoard, baud_register
+from .model import kinematics
+from .variants import Variant
+
+US = 1_000_000
+KEEP_ALIVE_S = 0.25
+COMPLIANCE_SLOPE_UNITS = 32          # AX-12A factory CW/CCW Compliance Slope
+
+
+def servo_lag_s() -> float:
+    """Small-signal time constant of an AX-12A at no load: inside the compliance slope its
+    PWM duty is proportional to the position error (full duty 32 units away, the factory
+    slope), and at no load the speed is proportional to duty, so the error decays with
+    tau = slope / no-load speed = 32 units / (59 rpm = 1207 units/s) = 26.5 ms. An
+    assumption from the servo's control law, not a measured figure: measure yours."""
+    no_load = ax12_sim.NO_LOAD_RPM * ax12_sim.UNITS_PER_S_PER_RPM
+    return COMPLIANCE_SLOPE_UNITS / no_load
+
+
+@dataclass
+class Settings:
+    seconds: float = 60.0            # scored time
+    settle: float = 5.0              # after engage, not scored: the arm gets there, filters settle
+    engage_at: float = 1.5           # s after power-up (enable at 0)
+    poll_us: int = 250               # main-loop period of the simulated board
+    servo_lag: float | None = None   # s; None: servo_lag_s()
+    servo_deadband: bool = True      # the compliance margin: no torque within 1 unit of the goal
+    drone_attitude: bool | None = None   # send the link attitude; None: when the firmware fuses it
+
+
+@dataclass
+class Run:
+    scenario: str
+    seed: int
+    label: str
+    t: np.ndarray                    # s since engage, every tick
+    error_mm: np.ndarray             # (n, 3)
+    true_att: np.ndarray             # (n, 2) roll, pitch rad
+    est_att: np.ndarray              # (n, 2)
+    scored: np.ndarray               # bool (n,)
+    flight: drone.Flight
+    out_of_reach_ticks: int = 0
+    link_messages: int = 0
+    faults: list = field(default_factory=list)
+    last_heartbeat: dict = field(default_factory=dict)
+
+    def metrics(self) -> dict:
+        e = np.linalg.norm(self.error_mm[self.scored], axis=1)
+        a = np.degrees(np.abs(self.est_att[self.scored] - self.true_att[self.scored]))
+        a = np.linalg.norm(a, axis=1)
+        return {"rms": float(np.sqrt(np.mean(e ** 2))), "p95": float(np.percentile(e, 95)),
+                "max": float(e.max()), "att_rms": float(np.sqrt(np.mean(a ** 2))), "att_max": float(a.max()),
+                "seconds": float(self.t[self.scored][-1] - self.t[self.scored][0] + self.t[1] - self.t[0])}
+
+
+def ee_error(model, q, roll, pitch, target) -> np.ndarray:
+    """e = R (offset + FK(q)) - (offset + p), mm; q (n, 3), roll/pitch (n,)."""
+    fk = fk_function(model)
+    off = np.asarray(model.mount_offset, dtype=float)
+    ee = np.stack(fk(q[:, 0], q[:, 1], q[:, 2]), axis=-1).reshape(len(q), 3)
+    R = drone.rotation(roll, pitch)
+    return np.einsum("nij,nj->ni", R, off + ee) - (off + np.asarray(target, dtype=float))
+
+
+_FK = {}
+
+
+def fk_function(model):
+    key = (model.L1, model.L2, model.L3)
+    if key not in _FK:
+        f = sp.lambdify(kinematics.JOINT_SYMBOLS, list(kinematics.fk_points(model)[1]), modules="numpy")
+        _FK[key] = lambda a, b, c: [np.broadcast_to(v, np.shape(a)) for v in f(a, b, c)]
+    return _FK[key]
+
+
+def fuses_drone_attitude(model) -> bool:
+    est = tomllib.loads(model.path.read_text()).get("estimator", {})
+    return bool(est.get("drone_attitude", False))
+
+
+class LinkAttitude:
+    """The drone's computer forwarding its flight controller's attitude: measured at rate_hz
+    with a constant bias and white noise, stamped in the drone's clock, delivered after a
+    jittered delay, in order (a serial link does not reorder)."""
+
+    def __init__(self, p: scenarios.LinkParams, flight: drone.Flight, rng: np.random.Generator):
+        self.p = p
+        self.flight = flight
+        self.rng = rng
+        self.bias = np.radians(rng.uniform(-1, 1, 2) * p.bias_deg)
+        self.clock_offset_us = int(rng.integers(0, 2 ** 32))
+        self.seq = int(rng.integers(0, 2 ** 16))
+        self.k = 1
+        self.last_arrival = 0.0
+        self._next = self._schedule()
+
+    def _schedule(self):
+        t_meas = self.k / self.p.rate_hz
+        delay = (self.p.delay_ms + self.rng.uniform(-1, 1) * self.p.jitter_ms) / 1000.0
+        arrival = max(t_meas + delay, self.last_arrival)
+        i = min(round(t_meas * drone.RATE), len(self.flight.t) - 1)
+        att = np.array([self.flight.roll[i], self.flight.pitch[i]]) + self.bias \
+            + self.rng.standard_normal(2) * math.radians(self.p.noise_deg)
+        stamp = (self.clock_offset_us + round(t_meas * US)) & 0xFFFFFFFF
+        return arrival, dict(seq=self.seq, stamp_us=stamp, roll=float(att[0]), pitch=float(att[1]))
+
+    @property
+    def next_time(self) -> float:
+        return self._next[0]
+
+    def pop(self) -> dict:
+        arrival, msg = self._next
+        self.last_arrival = arrival
+        self.k += 1
+        self.seq = (self.seq + 1) & 0xFFFF
+        self._next = self._schedule()
+        return msg
+
+
+def make_servos(model, lag: float, deadband: bool):
+    from .model import servo as servo_map
+    out = []
+    for j, s in enumerate(model.servos):
+        park = float(servo_map.joint_to_units(model, j, math.radians(model.park_deg[j])))
+        out.append(ax12_sim.AX12(s.id, position=float(round(park)), time_constant=lag, deadband=deadband,
+                                 table={"baud_rate": baud_register(model.servo_baud)}))
+    return out
+
+
+def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, settings: Settings = Settings(),
+             label: str = "") -> Run:
+    model = variant.model
+    st = settings
+    rng = np.random.default_rng([seed, 1])
+    total = st.engage_at + st.settle + st.seconds
+    flight = scenario.flight(total + 0.1, np.random.default_rng([seed, 2]))
+    motion = drone.FlightMotion(flight, model.mount_offset)
+    sensor = imu_model.Mpu6050Sensor(scenario.imu_errors(), seed=int(np.random.default_rng([seed, 3]).integers(2 ** 31)))
+    lag = servo_lag_s() if st.servo_lag is None else st.servo_lag
+    board = SimBoard(model, servos=make_servos(model, lag, st.servo_deadband), motion=motion,
+                     poll_us=st.poll_us, lib=(variant.ffi, variant.lib), record=False, sensor=sensor)
+    board.bus.lazy = True                   # servos stepped at bus traffic; sync() before reading them
+    send_attitude = fuses_drone_attitude(model) if st.drone_attitude is None else st.drone_attitude
+    link = LinkAttitude(scenario.link, flight, rng) if send_attitude else None
+    ffi, lib = variant.ffi, variant.lib
+    stab = ffi.addressof(board.app, "stab")
+    roll_p, pitch_p = ffi.new("float *"), ffi.new("float *")
+    target = dict(zip("xyz", scenario.target))
+    units_per_rad = model.servo_units_max / math.radians(model.servo_range_deg)
+    zero = np.array([s.zero for s in model.servos], dtype=float)
+    direction = np.array([s.direction for s in model.servos], dtype=float)
+    servos = [board.bus.servo(s.id) for s in model.servos]
+
+    tick_us = board.tick_us
+    end_us = round(total * US)
+    engage_us = round(st.engage_at * US)
+    next_alive = engage_us
+    rec_t, rec_q, rec_true, rec_est = [], [], [], []
+    out_of_reach = n_link = 0
+    faults = set()
+    board.send("enable", on=1)
+    engaged = False
+    next_rec = engage_us + tick_us // 2        # mid-tick: after the tick's servo command
+    while board.now_us < end_us:
+        events = [end_us, next_rec]
+        if engaged or board.now_us < engage_us:
+            events.append(next_alive if engaged else engage_us)
+        if link is not None:
+            events.append(round(link.next_time * US))
+        t_next = max(min(events), board.now_us + 1)
+        board.run_until_us(t_next)
+        now = board.now_us
+        if not engaged and now >= engage_us:
+            board.send("set_position", **target)
+            board.send("engage", on=1)
+            engaged = True
+            next_alive = now + round(KEEP_ALIVE_S * US)
+        elif engaged and now >= next_alive:
+            board.send("set_position", **target)
+            next_alive += round(KEEP_ALIVE_S * US)
+        while link is not None and link.next_time * US <= now:
+            board.send("drone_attitude", **link.pop())
+            n_link += 1
+        if now >= next_rec:
+            next_rec += tick_us
+            lib.stab_attitude(stab, roll_p, pitch_p)
+            board.bus.sync()
+            rec_t.append(board.time)
+            rec_q.append([s.position for s in servos])
+            rec_true.append(motion.attitude(board.time))
+            rec_est.append((roll_p[0], pitch_p[0]))
+            out_of_reach += bool(board.app.out_of_reach)
+            for hb in board.heartbeats[-1:]:
+                if hb["faults"]:
+                    faults.add(hb["faults"])
+    q = direction * (np.array(rec_q) - zero) / units_per_rad
+    true_att = np.array(rec_true)
+    err = ee_error(model, q, true_att[:, 0], true_att[:, 1], scenario.target)
+    t = np.array(rec_t) - st.engage_at
+    return Run(scenario.name, seed, label, t, err, true_att, np.array(rec_est), t >= st.settle,
+               flight, out_of_reach, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {})

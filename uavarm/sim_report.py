@@ -1,0 +1,241 @@
+"""Tables of the closed-loop simulator: `uavarm sim` (one scenario) and `make sim-report`
+(every scenario x estimator preset x seeds), with plots.
+
+    python -m uavarm.sim_report --out build/sim-report   # what `make sim-report` runs
+"""
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from . import scenarios, sim, variants
+
+REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
+REPORT_ESTIMATORS = ("complementary", "quaternion", "link")
+REPORT_SEEDS = 3
+REPORT_SECONDS = 60.0
+
+
+@dataclass
+class Row:
+    scenario: str
+    label: str
+    seeds: int
+    seconds: float
+    rms: float
+    p95: float
+    max: float
+    att_rms: float
+    att_max: float
+    out_of_reach: int
+    wall_s: float
+
+
+def summarise(runs: list[sim.Run], wall_s: float = 0.0) -> Row:
+    """Pooled over the seeds' scored samples: RMS, 95th percentile and maximum of |e|."""
+    e = np.concatenate([np.linalg.norm(r.error_mm[r.scored], axis=1) for r in runs])
+    a = np.concatenate([np.linalg.norm(np.degrees(r.est_att[r.scored] - r.true_att[r.scored]), axis=1)
+                        for r in runs])
+    m = runs[0].metrics()
+    return Row(runs[0].scenario, runs[0].label, len(runs), m["seconds"], float(np.sqrt(np.mean(e ** 2))),
+               float(np.percentile(e, 95)), float(e.max()), float(np.sqrt(np.mean(a ** 2))), float(a.max()),
+               sum(r.out_of_reach_ticks for r in runs), wall_s)
+
+
+HEADER = ("scenario", "estimator", "seeds", "s each", "EE RMS mm", "EE p95 mm", "EE max mm",
+          "att RMS deg", "att max deg", "out of reach ticks")
+
+
+def cells(r: Row) -> tuple:
+    return (r.scenario, r.label, str(r.seeds), f"{r.seconds:.0f}", f"{r.rms:.2f}", f"{r.p95:.2f}",
+            f"{r.max:.2f}", f"{r.att_rms:.2f}", f"{r.att_max:.2f}", str(r.out_of_reach))
+
+
+def text_table(rows: list[Row]) -> str:
+    data = [HEADER] + [cells(r) for r in rows]
+    widths = [max(len(row[i]) for row in data) for i in range(len(HEADER))]
+    lines = ["  ".join(c.rjust(w) if i > 1 else c.ljust(w) for i, (c, w) in enumerate(zip(row, widths)))
+             for row in data]
+    lines.insert(1, "-" * len(lines[0]))
+    return "\n".join(lines)
+
+
+def markdown_table(rows: list[Row]) -> str:
+    out = ["| " + " | ".join(HEADER) + " |", "|" + "|".join(["---"] * 2 + ["---:"] * (len(HEADER) - 2)) + "|"]
+    out += ["| " + " | ".join(cells(r)) + " |" for r in rows]
+    return "\n".join(out)
+
+
+def label_of(preset: str | None, sets) -> str:
+    return (preset or "model") + "".join(f" {s}" for s in sets)
+
+
+def _run_one(job):
+    scenario, changes, label, seed, settings = job
+    variant = variants.build(changes)
+    t0 = time.monotonic()
+    run = sim.simulate(scenario, variant, seed=seed, settings=settings, label=label)
+    return run, time.monotonic() - t0
+
+
+def run_jobs(jobs, workers: int = 1):
+    if workers <= 1:
+        return [_run_one(j) for j in jobs]
+    with multiprocessing.get_context("fork").Pool(workers) as pool:
+        return pool.map(_run_one, jobs, chunksize=1)
+
+
+def plot_run(run: sim.Run, out_dir: Path) -> list[Path]:
+    """Error over time and estimated vs true attitude of one run, as PNG files."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    out_dir.mkdir(parents=True, exist_ok=True)
+    stem = f"{run.scenario}-{run.label}-seed{run.seed}".replace(" ", "_").replace("/", "_")
+    paths = []
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for i, name in enumerate("xyz"):
+        ax[0].plot(run.t, run.error_mm[:, i], lw=0.6, label=f"e{name}")
+    ax[0].plot(run.t, np.linalg.norm(run.error_mm, axis=1), "k", lw=0.8, label="|e|")
+    ax[0].axvspan(run.t[0], run.t[~run.scored][-1] if (~run.scored).any() else run.t[0], color="0.9",
+                  label="settling (not scored)")
+    ax[0].set_ylabel("end-effector error, mm")
+    ax[0].legend(loc="upper right", ncol=5, fontsize=8)
+    m = run.metrics()
+    ax[0].set_title(f"{run.scenario}, {run.label}, seed {run.seed}: RMS {m['rms']:.2f} mm, "
+                    f"p95 {m['p95']:.2f} mm, max {m['max']:.2f} mm")
+    tilt = np.degrees(np.arccos(np.cos(run.true_att[:, 0]) * np.cos(run.true_att[:, 1])))
+    ax[1].plot(run.t, tilt, lw=0.6, color="0.4")
+    ax[1].set_ylabel("drone tilt, deg")
+    ax[1].set_xlabel("time since engage, s")
+    fig.tight_layout()
+    p = out_dir / f"{stem}-error.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+
+    fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
+    for i, name in enumerate(("roll", "pitch")):
+        ax[i].plot(run.t, np.degrees(run.true_att[:, i]), "k", lw=0.8, label=f"true {name}")
+        ax[i].plot(run.t, np.degrees(run.est_att[:, i]), "r", lw=0.6, label=f"estimated {name}")
+        ax[i].plot(run.t, np.degrees(run.est_att[:, i] - run.true_att[:, i]), "b", lw=0.5, label="error")
+        ax[i].set_ylabel("deg")
+        ax[i].legend(loc="upper right", ncol=3, fontsize=8)
+    ax[0].set_title(f"{run.scenario}, {run.label}, seed {run.seed}: attitude error RMS {m['att_rms']:.2f} deg, "
+                    f"max {m['att_max']:.2f} deg")
+    ax[1].set_xlabel("time since engage, s")
+    fig.tight_layout()
+    p = out_dir / f"{stem}-attitude.png"
+    fig.savefig(p, dpi=110)
+    plt.close(fig)
+    paths.append(p)
+    return paths
+
+
+def build_variants(estimators, sets) -> dict[str, dict]:
+    """Every estimator's key edits, built now so that an unknown key stops before any run."""
+    out = {}
+    for est in estimators:
+        preset = None if est == "model" else est
+        try:
+            changes = variants.edits(preset, sets)
+            variants.build(changes)
+        except variants.VariantError as exc:
+            raise variants.VariantError(f"estimator {est}: {exc}") from None
+        out[est] = changes
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m uavarm.sim_report",
+                                 description="The closed-loop simulator's full table (make sim-report)")
+    ap.add_argument("--out", type=Path, default=Path("build/sim-report"))
+    ap.add_argument("--scenarios", nargs="+", default=list(REPORT_SCENARIOS))
+    ap.add_argument("--estimators", nargs="+", default=list(REPORT_ESTIMATORS),
+                    help=f"presets ({', '.join(variants.PRESETS)}) or `model` (the model file as it is)")
+    ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
+    ap.add_argument("--seeds", type=int, default=REPORT_SEEDS)
+    ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
+    ap.add_argument("--jobs", type=int, default=2)
+    args = ap.parse_args(argv)
+    try:
+        changes = build_variants(args.estimators, args.sets)
+        loaded = {name: scenarios.load(name) for name in args.scenarios}
+    except (variants.VariantError, scenarios.ScenarioError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    settings = replace(sim.Settings(), seconds=args.seconds)
+    jobs = [(loaded[s], changes[e], e, seed, settings)
+            for s in args.scenarios for e in args.estimators for seed in range(args.seeds)]
+    t0 = time.monotonic()
+    results = run_jobs(jobs, args.jobs)
+    rows, k = [], 0
+    plots = args.out / "plots"
+    for s in args.scenarios:
+        for e in args.estimators:
+            group = results[k:k + args.seeds]
+            k += args.seeds
+            rows.append(summarise([r for r, _ in group], sum(w for _, w in group)))
+            plot_run(group[0][0], plots)
+    text = text_table(rows)
+    print(text)
+    args.out.mkdir(parents=True, exist_ok=True)
+    settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
+                     f"{settings.settle:.0f} s settling from engage; main loop every {settings.poll_us} us; "
+                     f"servo lag {sim.servo_lag_s() * 1e3:.1f} ms; IMU profile per scenario "
+                     f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
+                     f"extra model edits: {args.sets or 'none'}")
+    md = ["# Closed-loop simulator report", "", "Command: `make sim-report` "
+          f"(`python -m uavarm.sim_report {' '.join(argv or sys.argv[1:])}`)", "", settings_line, "",
+          "End-effector error |e| in the gravity-aligned, heading-following frame, pooled over the seeds; "
+          "attitude error = |estimate - truth| of (roll, pitch).", "", markdown_table(rows), "",
+          f"Wall time: {time.monotonic() - t0:.0f} s with {args.jobs} workers. Plots: `plots/`.", ""]
+    (args.out / "report.md").write_text("\n".join(md))
+    print(f"\nwrote {args.out / 'report.md'} and {plots}/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
+
+
+def sim_command(args) -> int:
+    """`uavarm sim`: one scenario, one firmware variant, some seeds: table and plots."""
+    try:
+        scenario = scenarios.load(args.scenario)
+        if args.imu:
+            scenario = replace(scenario, imu_profile=args.imu)
+        changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
+    except (variants.VariantError, scenarios.ScenarioError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    settings = replace(sim.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
+                       drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude])
+    label = label_of(args.estimator, args.sets)
+    jobs = [(scenario, changes, label, seed, settings) for seed in range(args.seed, args.seed + args.seeds)]
+    try:
+        results = run_jobs(jobs, min(args.jobs, len(jobs)))
+    except scenarios.ScenarioError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    rows = [summarise([r], w) for r, w in results]
+    for row, (r, _) in zip(rows, results):
+        row.label = f"{label} (seed {r.seed})"
+    if len(results) > 1:
+        rows.append(summarise([r for r, _ in results], sum(w for _, w in results)))
+        rows[-1].label = f"{label} (all {len(results)} seeds)"
+    print(f"scenario {scenario.name} ({args.scenario}), IMU {scenario.imu_profile}, "
+          f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}; scored {args.seconds:g} s "
+          f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
+    print(text_table(rows))
+    if args.plots:
+        for r, _ in results:
+            for p in plot_run(r, Path(args.plots)):
+                print(f"wrote {p}")
+    return 0

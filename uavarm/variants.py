@@ -1,0 +1,141 @@
+"""Firmware variants for the simulator: the model file with some keys edited, generated and
+built into its own host library, cached under build/sim/<hash>/.
+
+    lib = variants.build(variants.edits("link", ["estimator.lead_time=0.02"]))
+
+An edit names a key that must already exist in the model file (`estimator.kind`,
+`mount.offset`, ...): a key the model does not have stops with an error instead of being
+ignored by the loader, so a preset never silently measures the wrong firmware.
+"""
+from __future__ import annotations
+
+import hashlib
+import re
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import cbuild, firmware
+from .model import config
+
+SIM_BUILD = cbuild.ROOT / "build" / "sim"
+
+# Estimator presets of `uavarm sim --estimator`: the model keys each one sets.
+PRESETS: dict[str, dict[str, object]] = {
+    "complementary": {"estimator.kind": "complementary", "estimator.drone_attitude": False},
+    "quaternion": {"estimator.kind": "quaternion", "estimator.drone_attitude": False},
+    "link": {"estimator.kind": "quaternion", "estimator.drone_attitude": True},
+}
+
+
+class VariantError(ValueError):
+    """An edit the model file cannot take."""
+
+
+def parse_value(text: str):
+    """A --set value as TOML (numbers, true/false, arrays, "strings"); a bare word is a string."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", text):
+            return text
+        raise VariantError(f"not a TOML value: {text!r}") from None
+
+
+def edits(preset: str | None = None, sets=()) -> dict[str, object]:
+    """The key edits of a preset followed by KEY=VALUE strings (later ones win)."""
+    out: dict[str, object] = {}
+    if preset is not None:
+        if preset not in PRESETS:
+            raise VariantError(f"unknown estimator preset {preset!r} (choose from {', '.join(PRESETS)})")
+        out.update(PRESETS[preset])
+    for item in sets:
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise VariantError(f"--set takes KEY=VALUE, got {item!r}")
+        out[key.strip()] = parse_value(value.strip())
+    return out
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    raise VariantError(f"cannot write {v!r} into the model file")
+
+
+_HEADER = re.compile(r"^\s*\[([A-Za-z0-9_.\-]+)\]\s*(#.*)?$")
+_ASSIGN = re.compile(r"^(\s*)([A-Za-z0-9_\-]+)(\s*=\s*)")
+
+
+def edit_text(text: str, key: str, value, where: str = "model") -> str:
+    """The model file's text with `key` (dotted: table.key) set to value; comments kept."""
+    table, _, name = key.rpartition(".")
+    data = tomllib.loads(text)
+    node = data
+    for part in key.split("."):
+        if not isinstance(node, dict) or part not in node:
+            raise VariantError(f"{where}: {key}: no such key in the model file; this firmware does not "
+                               f"know it (a preset of another branch, or a typo?)")
+        node = node[part]
+    lines = text.splitlines(keepends=True)
+    current = ""
+    for i, line in enumerate(lines):
+        h = _HEADER.match(line)
+        if h:
+            current = h.group(1)
+            continue
+        m = _ASSIGN.match(line)
+        if m and current == table and m.group(2) == name:
+            if "\n" not in line or line.rstrip().endswith("["):
+                raise VariantError(f"{where}: {key}: multi-line values cannot be edited")
+            lines[i] = f"{m.group(1)}{name}{m.group(3)}{_toml_value(value)}   # edited by uavarm sim\n"
+            new = "".join(lines)
+            got = tomllib.loads(new)
+            for part in key.split("."):
+                got = got[part]
+            if got != value:
+                raise VariantError(f"{where}: {key}: edit did not take ({got!r} != {value!r})")
+            return new
+    raise VariantError(f"{where}: {key}: not written as `{name} = ...` under [{table}]; cannot edit it")
+
+
+@dataclass(frozen=True)
+class Variant:
+    model: config.Model
+    ffi: object
+    lib: object
+    edits: dict
+    gen_dir: Path
+
+
+def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Variant:
+    """Generate and build the firmware of the edited model (cached by content)."""
+    if not changes and Path(base) == config.DEFAULT_MODEL:
+        ffi, lib = firmware.default()
+        return Variant(config.load(base), ffi, lib, {}, firmware.generated.GENERATED)
+    text = Path(base).read_text()
+    for key, value in changes.items():
+        text = edit_text(text, key, value, str(base))
+    from .codegen import generate   # imports SymPy: only when a variant is really built
+    digest = hashlib.sha256((text + generate._templates_digest()).encode()).hexdigest()[:16]
+    out = SIM_BUILD / digest
+    model_path = out / "manipulator.toml"
+    gen_dir = out / "generated"
+    stamp = out / "done"
+    if not stamp.exists():
+        out.mkdir(parents=True, exist_ok=True)
+        model_path.write_text(text)
+        try:
+            files = generate.render(model_path)
+        except config.ModelError as exc:
+            raise VariantError(str(exc)) from None
+        generate.write(files, gen_dir)
+        stamp.write_text("".join(f"{k} = {_toml_value(v)}\n" for k, v in changes.items()))
+    ffi, lib = firmware.load(gen_dir)
+    return Variant(config.load(model_path), ffi, lib, dict(changes), gen_dir)
