@@ -112,8 +112,9 @@ def servo_context(m: config.Model):
     for j in range(3):
         lo, hi = servo.unit_range(m, j)
         joints.append({
-            "to_units": c(servo.joint_to_units(m, j, angle)),
-            "to_angle": c(servo.units_to_joint(m, j, units)),
+            # constants folded at generation time: one multiply-add, no division by pi
+            "to_units": c(sp.expand(servo.joint_to_units(m, j, angle)).evalf(40)),
+            "to_angle": c(sp.expand(servo.units_to_joint(m, j, units)).evalf(40)),
             "units_min": lo, "units_max": hi,
         })
     return {"joints": joints}
@@ -133,12 +134,15 @@ def estimator_context(m: config.Model):
                   cached=("e->sin_roll", "e->cos_roll", "e->sin_pitch", "e->cos_pitch"))
     Q, QH, B, U, W = quaternion.Q, quaternion.QH, quaternion.BIAS, quaternion.UP, quaternion.RATE
     q_c, qh_c, b_c = [f"e->q[{i}]" for i in range(4)], [f"q_hist[{i}]" for i in range(4)], [f"e->bias[{i}]" for i in range(3)]
-    q_next, b_next, rate = quaternion.step(m)
+    q_next, b_next, rate, up_next = quaternion.step(m)
     quat_step = _function([(f"const float q{i}", q_next[i]) for i in range(4)]
                           + [(f"const float b{i}", b_next[i]) for i in range(3)]
-                          + [(f"e->rate[{i}]", rate[i]) for i in range(3)],
-                          Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.INNOVATION),
-                          q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "innovation_scale"])
+                          + [(f"e->rate[{i}]", rate[i]) for i in range(3)]
+                          + [(f"up[{i}]", up_next[i]) for i in range(3)],
+                          Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.GATE),
+                          q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "gate"])
+    quat_gate = _function([("const float gate", quaternion.accel_gate(m))], Q + acc + (quaternion.INNOVATION,),
+                          q_c + acc_c + ["innovation_scale"], prefix="g")
     corr, err = quaternion.link_error()
     link = _function([(f"c[{i}]", corr[i]) for i in range(4)] + [(f"err[{i}]", err[i]) for i in range(3)],
                      QH + (quaternion.LINK_SR, quaternion.LINK_CR, quaternion.LINK_SP, quaternion.LINK_CP, quaternion.LINK_K),
@@ -154,6 +158,7 @@ def estimator_context(m: config.Model):
     est_rate = quaternion.rate_of(m)
     return {
         "quat_step": quat_step,
+        "quat_gate": quat_gate,
         "quat_link": link,
         "quat_left": left,
         "bias_update": bias_up,

@@ -11,14 +11,14 @@ Step (one sample period dt, a Mahony-style PI observer):
 
     a = R_mount acc,  w_m = R_mount gyro               (base axes)
     e = a x u                                           the rotation that turns u toward a
-    g = max(0, 1 - |a.a - 1| / (2 accel_tol)) * max(0, 1 - innovation_scale e.e)
+    g = max(0, 1 - |a.a - 1| / (2 accel_tol)) / (1 + innovation_scale e.e)
     w = w_m - b + k_p g e
     q <- normalise(q (x) dq(w dt)),  dq(t) = (1 - |t|^2/8, t (1/2 - |t|^2/48))   (exp to 4th order)
     b <- clamp(b - k_i g e dt, +-bias_max)
 
 The gate g refuses the accelerometer when its magnitude is not 1 g (any acceleration that
-changes the thrust) and when its direction disagrees with the gyro-propagated estimate by more
-than the innovation angle: in coordinated flight a multirotor's accelerometer reads body-z
+changes the thrust) and damps it when its direction disagrees with the gyro-propagated
+estimate by more than the innovation angle (weight 1/2 there): in coordinated flight a multirotor's accelerometer reads body-z
 thrust whatever the tilt, so only the second test sees that. k_p, k_i and the innovation scale
 are run-time arguments: the firmware aligns fast while the arm is not engaged (rest) and
 slowly, gated, in flight.
@@ -50,6 +50,7 @@ BIAS = sp.symbols("bx by bz", real=True)          # gyro bias, base axes, rad/s
 UP = sp.symbols("ux uy uz", real=True)            # up direction in base axes (any length > 0)
 RATE = sp.symbols("wx wy wz", real=True)          # bias-corrected body rate, base axes, rad/s
 K_P, K_I, INNOVATION = sp.symbols("k_p k_i innovation_scale", real=True)
+GATE = sp.Symbol("gate", real=True)
 LINK_SR, LINK_CR, LINK_SP, LINK_CP = sp.symbols("sr cr sp cp", real=True)
 LINK_K, LINK_KB = sp.symbols("k_link k_bias", real=True)
 # |horizontal part of up| is kept above this fraction of |up| (pitch within +-89.9 deg), so
@@ -104,24 +105,35 @@ def gate(m: Model, a, e):
     tol = _rat(m.estimator.accel_reject_g)
     n2 = sum(c * c for c in a)
     mag = sp.Max(0, 1 - sp.Abs(n2 - 1) / (2 * tol))
-    return mag * sp.Max(0, 1 - INNOVATION * sum(c * c for c in e))
+    # a soft gate: large innovations are damped, never cut off, so an estimate that has drifted
+    # past the innovation angle still comes back (slowly) instead of locking out
+    return mag / (1 + INNOVATION * sum(c * c for c in e))
+
+
+def accel_gate(m: Model):
+    """The accelerometer's weight g of the step, from ACC, Q and INNOVATION."""
+    a = mounting(m) * sp.Matrix(ACC)
+    return gate(m, a, a.cross(up_of(Q)))
 
 
 def step(m: Model):
-    """(q_next (4), bias_next (3), rate (3)): one sample of accelerometer and gyro."""
+    """(q_next (4), bias_next (3), rate (3), up_next (3)): one sample of accelerometer and gyro."""
     M = mounting(m)
     a = M * sp.Matrix(ACC)
     w_m = M * sp.Matrix(GYRO)
     u = up_of(Q)
     e = a.cross(u)
-    g = gate(m, a, e)
+    g = GATE                      # accel_gate(m), computed first (keeps the expressions small)
     dt = 1 / _rat(m.sample_rate)
     b = sp.Matrix(BIAS)
     w = w_m - b + K_P * g * e
-    q_next = _normalised(qmul(Q, delta(tuple(c * dt for c in w))))
+    q_raw = qmul(Q, delta(tuple(c * dt for c in w)))
+    inv2 = 1 / sum(c * c for c in q_raw)
+    q_next = tuple(c * sp.sqrt(inv2) for c in q_raw)
+    up_next = list(up_of(q_raw) * inv2)      # = up_of(q_next), without normalising first
     b_next = [_clamp(b[i] - K_I * g * e[i] * dt, _bias_max(m)) for i in range(3)]
     rate = [w_m[i] - b_next[i] for i in range(3)]
-    return q_next, b_next, rate
+    return q_next, b_next, rate, up_next
 
 
 def from_up(u):

@@ -47,8 +47,10 @@ def fw():
     return firmware.default()
 
 
+# A second build: another mount offset, lead and link delay, and a tight accelerometer gate.
 OFFSET_LEAD = {"offset = [0.0, 0.0, -80.0]": "offset = [12.0, -25.0, -60.0]", "lead_time = 0.04": "lead_time = 0.06",
-               "link_delay_min = 0.002": "link_delay_min = 0.06"}
+               "link_delay_min = 0.015": "link_delay_min = 0.06", "accel_reject_deg = 90.0": "accel_reject_deg = 3.0",
+               "accel_gain = 0.5": "accel_gain = 0.2", "bias_gain = 0.1": "bias_gain = 0.005"}
 
 
 @pytest.fixture(scope="module")
@@ -76,11 +78,13 @@ def _mp_function(exprs):
 
 def test_quaternion_step_matches_the_sympy_model(fw):
     ffi, lib = fw
-    q_next, b_next, rate = quaternion.step(MODEL)
-    model_step = _mp_function(list(q_next) + list(b_next) + list(rate))
+    q_next, b_next, rate, up_next = quaternion.step(MODEL)
+    gate = quaternion.accel_gate(MODEL)
+    model_step = _mp_function([sp.sympify(v).subs(quaternion.GATE, gate)
+                               for v in list(q_next) + list(b_next) + list(rate) + list(up_next)])
     rng = np.random.default_rng(7)
     e = ffi.new("est_quat_t *")
-    acc, gyro = ffi.new("float[3]"), ffi.new("float[3]")
+    acc, gyro, up = ffi.new("float[3]"), ffi.new("float[3]"), ffi.new("float[3]")
     worst = 0.0
     for k in range(150):
         q = Rotation.random(random_state=rng).as_quat()[[3, 0, 1, 2]].astype(np.float32)
@@ -93,8 +97,8 @@ def test_quaternion_step_matches_the_sympy_model(fw):
         e.bias[0:3] = [float(v) for v in b]
         acc[0:3] = [float(v) for v in a]
         gyro[0:3] = [float(v) for v in g]
-        lib.est_quat_step(e, acc, gyro, float(k_p), float(k_i), float(inn))
-        got = list(e.q) + list(e.bias) + list(e.rate)
+        lib.est_quat_step(e, acc, gyro, float(k_p), float(k_i), float(inn), up)
+        got = list(e.q) + list(e.bias) + list(e.rate) + list(up)
         subs = dict(zip(quaternion.Q, q)) | dict(zip(quaternion.BIAS, b)) | dict(zip(attitude.ACC, a)) \
             | dict(zip(attitude.GYRO, g)) | {quaternion.K_P: k_p, quaternion.K_I: k_i, quaternion.INNOVATION: inn}
         want = model_step({s: float(v) for s, v in subs.items()})
@@ -121,7 +125,7 @@ def test_gyro_integration_matches_scipy_rotation(fw, rate_dps):
     ffi, lib = fw
     rng = np.random.default_rng(int(rate_dps))
     e = ffi.new("est_quat_t *")
-    acc, gyro = ffi.new("float[3]", [0.0, 0.0, 1.0]), ffi.new("float[3]")
+    acc, gyro, up = ffi.new("float[3]", [0.0, 0.0, 1.0]), ffi.new("float[3]"), ffi.new("float[3]")
     for trial in range(4):
         start = Rotation.random(random_state=rng)
         axis = rng.normal(size=3)
@@ -131,12 +135,13 @@ def test_gyro_integration_matches_scipy_rotation(fw, rate_dps):
         gyro[0:3] = [float(v) for v in np.float32(w)]
         n = round(1.0 / DT)
         for _ in range(n):
-            lib.est_quat_step(e, acc, gyro, 0.0, 0.0, 0.0)
+            lib.est_quat_step(e, acc, gyro, 0.0, 0.0, 0.0, up)
         truth = start * Rotation.from_rotvec(np.float32(w).astype(float) * n * DT)   # body-frame rate
         err = (truth.inv() * _rot(list(e.q))).magnitude()
         # 4th-order exp: |theta|^5 / 1920 per step (5e-9 rad at 500 deg/s) + float32 rounding
         assert err < 2e-5, (rate_dps, err)
         assert abs(np.linalg.norm(list(e.q)) - 1.0) < 1e-6
+        assert np.allclose(list(up), truth.inv().apply([0, 0, 1]), atol=2e-5), "up of the new attitude"
 
 
 def test_reset_points_up_along_the_accelerometer(fw):
@@ -245,12 +250,13 @@ def test_gyro_bias_is_learnt_at_rest(fw):
     assert math.degrees(run.errors[-1]) < 0.01
 
 
-def test_accelerometer_is_rejected_in_coordinated_flight(fw):
-    """Engaged, a sustained 12 deg tilt entered at a physical rate while the accelerometer
-    reads body-z thrust (what a multirotor's does): the gated estimate stays with the gyro's
-    (error < 0.3 deg after 10 s), where an ungated accelerometer correction (the align gains)
-    is pulled most of the way to level."""
-    ffi, lib = fw
+def test_accelerometer_is_rejected_in_coordinated_flight(offset_lead):
+    """With a tight gate (3 deg, the variant build): engaged, a sustained 12 deg tilt entered
+    at a physical rate while the accelerometer reads body-z thrust (what a multirotor's does):
+    the soft gate weighs that 12 deg disagreement by 1 / (1 + sin^2 12 / sin^2 3) = 0.058, so at
+    the variant's 0.2 /s the estimate leaks toward level at ~1.2 %/s: < 2.5 deg after 10 s,
+    where the ungated correction (the align gains) is pulled most of the way to level."""
+    _, ffi, lib = offset_lead
 
     def truth(t):
         s = min(max(t - 1.5, 0.0), 1.0)
@@ -259,7 +265,7 @@ def test_accelerometer_is_rejected_in_coordinated_flight(fw):
     gated = StabRun(ffi, lib, truth, accel="thrust")
     gated.t_us = 1_000_000
     gated.run(12.0)
-    assert math.degrees(gated.errors[-1]) < 0.3, math.degrees(gated.errors[-1])
+    assert math.degrees(gated.errors[-1]) < 2.5, math.degrees(gated.errors[-1])
     ungated = StabRun(ffi, lib, truth, accel="thrust", engaged=False).run(12.0)
     assert math.degrees(ungated.errors[-1]) > 8.0
 
@@ -269,13 +275,13 @@ def test_accelerometer_magnitude_gate(fw):
     closed, accel_reject_g = 0.1), while at 1 g the same step turns the estimate."""
     ffi, lib = fw
     e = ffi.new("est_quat_t *")
-    acc, gyro = ffi.new("float[3]"), ffi.new("float[3]")
+    acc, gyro, up = ffi.new("float[3]"), ffi.new("float[3]"), ffi.new("float[3]")
     off = Rotation.from_euler("X", math.radians(20)).inv().apply([0, 0, 1])
     for scale, moves in ((1.3, False), (1.0, True)):
         e.q[0:4] = [1.0, 0.0, 0.0, 0.0]
         e.bias[0:3] = [0.0, 0.0, 0.0]
         acc[0:3] = [float(v) for v in off * scale]
-        lib.est_quat_step(e, acc, gyro, 2.0, 0.5, 0.0)
+        lib.est_quat_step(e, acc, gyro, 2.0, 0.5, 0.0, up)
         assert (abs(e.q[1]) > 1e-4) == moves, (scale, list(e.q))
 
 
@@ -438,12 +444,12 @@ def test_lead_commands_the_pose_needed_lead_time_ahead(fw, offset_lead, which):
     ("lead_time = 0.04", "lead_time = -0.01", "estimator.lead_time: must not be negative"),
     ("lead_time = 0.04", "lead_time = 0.5", "estimator.lead_time: must be <= 0.2"),
     ("link_gain = 0.5", "link_gain = 1.5", "estimator.link_gain: must be <= 1.0"),
-    ("link_delay_min = 0.002", "link_delay_min = 0.2", "estimator.link_delay_min: must be less than link_delay_max"),
+    ("link_delay_min = 0.015", "link_delay_min = 0.2", "estimator.link_delay_min: must be less than link_delay_max"),
     ("link_delay_max = 0.15", "link_delay_max = 0.4", "estimator.link_delay_max: the attitude history holds 30 samples"),
     ("link_timeout = 0.1", "link_timeout = 0.001", "estimator.link_timeout: must be >= 0.02"),
-    ("accel_gain = 0.2", "accel_gain = 80.0", "estimator.accel_gain: must be <= 50.0"),
-    ("accel_reject_deg = 3.0", "accel_reject_deg = 0.0", "estimator.accel_reject_deg: must be >= 0.1"),
-    ("bias_gain = 0.005", "bias_gain = nan", "estimator.bias_gain: must be finite"),
+    ("accel_gain = 0.5", "accel_gain = 80.0", "estimator.accel_gain: must be <= 50.0"),
+    ("accel_reject_deg = 90.0", "accel_reject_deg = 0.0", "estimator.accel_reject_deg: must be >= 0.1"),
+    ("bias_gain = 0.1", "bias_gain = nan", "estimator.bias_gain: must be finite"),
     ("link_bias_gain = 0.5", "link_bias_gains = 0.5", "estimator.link_bias_gain: missing"),
 ])
 def test_estimator_keys_are_validated(tmp_path, old, new, message):

@@ -65,7 +65,7 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
                                        uint32_t now_us);
 /* Is the drone's attitude fresh (accepted within the model's link_timeout of now_us)? */
 bool stab_link_fresh(const stab_t *s, uint32_t now_us);
-/* The estimate's roll and pitch (rad). */
+/* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
 void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* Joints that put the end effector on target_level (level frame, mm) at the current
  * attitude predicted lead_time ahead: the valid IK candidate nearest q_now. Writes q_out only
@@ -73,8 +73,6 @@ void stab_attitude(const stab_t *s, float *roll, float *pitch);
 kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3]);
 /* The same for a level base (no tilt): is target_level reachable at all? */
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3]);
-/* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
-void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* cffi:end */
 
 #ifdef __cplusplus

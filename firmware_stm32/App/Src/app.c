@@ -49,6 +49,13 @@ void app_request_tick(app_t *app)
 
 /* ------------------------------------------------------------------ commands */
 
+static void show_state(const app_t *app)
+{
+    app->port->led(app->port->ctx, 0, app->enabled);
+    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
+}
+
+
 static void set_enabled(app_t *app, bool on)
 {
     if (on == app->enabled) return;
@@ -59,6 +66,7 @@ static void set_enabled(app_t *app, bool on)
         park_joints(app);
     }
     sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
+    show_state(app);
 }
 
 static void on_set_position(app_t *app, const msg_set_position_t *m)
@@ -173,17 +181,15 @@ static void command_servos(app_t *app)
     sbus_command(&app->bus, units, speeds);
 }
 
-static void show_state(const app_t *app)
-{
-    app->port->led(app->port->ctx, 0, app->enabled);
-    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
-}
+
+/* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
+#define LED_EVERY_TICKS 10u
 
 static void tick(app_t *app)
 {
     sample_imu(app);
     if (app->enabled) command_servos(app);
-    show_state(app);
+    if (app->ticks_run % LED_EVERY_TICKS == 0u) show_state(app);
 }
 
 /* ------------------------------------------------------------------ heartbeat */

@@ -53,13 +53,13 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
 #if MODEL_ESTIMATOR_QUATERNION
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
     if (stab_link_fresh(s, now_us)) {
-        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f);   /* the drone's attitude corrects */
+        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, s->up);   /* the drone's attitude corrects */
     } else if (engaged) {
-        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE);
+        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
+                      s->up);
     } else {
-        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f);
+        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, s->up);
     }
-    est_quat_up(s->quat.q, s->up);
     memcpy(s->rate, s->quat.rate, sizeof s->rate);
     if (MODEL_DRONE_ATTITUDE) remember(s, now_us);
 #else
@@ -193,10 +193,4 @@ kin_status_t stab_solve(const stab_t *s, const float target_level[3], const floa
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3])
 {
     return solve_base(target_level, q_now, q_out);
-}
-
-void stab_attitude(const stab_t *s, float *roll, float *pitch)
-{
-    *roll = s->attitude.roll;
-    *pitch = s->attitude.pitch;
 }
