@@ -26,7 +26,8 @@ typedef enum {
     STAB_LINK_OFF = 1,             /* the model does not fuse the drone's attitude */
     STAB_LINK_NOT_FINITE = 2,      /* roll or pitch NaN, infinite or beyond +-pi, +-pi/2 */
     STAB_LINK_OUT_OF_ORDER = 3,    /* seq or stamp not newer than the last accepted one */
-    STAB_LINK_STALE = 4            /* measured longer ago than the history (link_delay_max) */
+    STAB_LINK_STALE = 4,           /* measured longer ago than the history (link_delay_max) */
+    STAB_LINK_OPPOSITE = 5         /* up side down from the estimate: no unique correction */
 } stab_link_status_t;
 
 typedef struct {

@@ -140,6 +140,10 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
         return STAB_LINK_STALE;
     }
     est_link_error(q_then, roll, pitch, MODEL_LINK_GAIN, c, err);
+    if (!(c[0] > 1e-6f)) {   /* c[0] = 1 + cos(disagreement): ~180 deg has no rotation axis */
+        s->link_refused++;
+        return STAB_LINK_OPPOSITE;
+    }
     est_quat_rotate_left(c, s->quat.q);
     /* the history takes the same level-frame correction: the next message compares with it */
     for (unsigned n = 0; n < s->hist_len; ++n) est_quat_rotate_left(c, s->hist_q[n]);
