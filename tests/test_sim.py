@@ -10,7 +10,7 @@ import tomllib
 import numpy as np
 import pytest
 
-from uavarm import drone, scenarios, sim, sim_report, variants
+from uavarm import drone, messages, scenarios, sim, sim_report, variants
 from uavarm.model import config
 
 MODEL = config.load()
@@ -157,10 +157,15 @@ def test_a_constant_tilt_with_an_ideal_imu_scores_the_servo_resolution(tmp_path)
     remains is the servos' rounding and dead band, a unit or two at ~140 mm (~1 mm)."""
     (tmp_path / "log.csv").write_text("t,roll,pitch,ax,ay,az\n0,12,-7,0,0,0\n30,12,-7,0,0,0\n")
     (tmp_path / "s.toml").write_text('kind = "replay"\n[motion]\ncsv = "log.csv"\n[imu]\nprofile = "ideal"\n')
-    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0]})
+    # IMU only: the link's attitude carries the simulated flight controller's own error
+    # (+-0.2 deg bias), which is not part of the chain checked here
+    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0], "estimator.drone_attitude": False})
     m = run.metrics()
     assert m["max"] < 1.5 and m["att_max"] < 0.05, m
     assert not run.faults and run.out_of_reach_ticks == 0
+
+
+FAULT_OUT_OF_REACH = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
 
 
 @pytest.mark.parametrize("scenario, att_rms_deg", [("bench", 2.0), ("hover", 6.0), ("manoeuvre", 10.0)])
@@ -172,7 +177,11 @@ def test_each_scenario_closes_the_loop(scenario, att_rms_deg):
     assert m["seconds"] == pytest.approx(3.0, abs=0.02)
     assert m["rms"] < 40.0 and m["max"] < 60.0, m
     assert m["att_rms"] < att_rms_deg, m
-    assert not run.faults and run.out_of_reach_ticks == 0
+    # the stabiliser turns the target about the centre of rotation: at the bench's 20 deg the
+    # model's 80 mm offset carries this target out of the workspace for a few ticks (the
+    # joints hold, out_of_reach; test_app checks the hold)
+    assert not [f for f in run.faults if f & ~FAULT_OUT_OF_REACH]
+    assert run.out_of_reach_ticks == 0 or scenario == "bench"
     assert run.last_heartbeat["engaged"] == 1
 
 
