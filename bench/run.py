@@ -140,7 +140,7 @@ def whole_tick(m):
           f"{ref_tick / 96:.1f} | {base.stack_bytes} |")
     print(f"| ratio reference / firmware arithmetic | | {ref_tick / arithmetic:.1f}x | | |")
     print("\nLargest shares of the firmware tick (est. cycles, exclusive):",
-          ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:8]))
+          ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:14]))
 
 
 def target_size():

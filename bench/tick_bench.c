@@ -117,11 +117,13 @@ int bench_run(const int32_t *raw, uint32_t n, uint32_t ticks)
             imu_regs[MPU_REG_ACCEL_XOUT_H + 8 + 2 * i] = (uint8_t)(g >> 8);
             imu_regs[MPU_REG_ACCEL_XOUT_H + 9 + 2 * i] = (uint8_t)g;
         }
+        imu_regs[MPU_REG_INT_STATUS] = MPU_INT_DATA_RDY;   /* a new sample, as the chip flags it */
         now += MODEL_TICK_US;
         if (ticks) app_request_tick(&app);
         app_poll(&app);   /* the tick: IMU, stabiliser, IK, command; SYNC_WRITE out */
         app_poll(&app);   /* status READ out */
         app_poll(&app);   /* reply parsed */
     }
-    return ok && app.bus.sync_writes == (ticks ? n : 0);
+    /* still engaged: the ticks measured were the stabilising path, not a parked arm */
+    return ok && app.engaged && app.bus.sync_writes == (ticks ? n : 0);
 }

@@ -15,7 +15,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import attitude, collision, config, filters, kinematics, messages, servo
+from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo
 from . import approx
 from .printer import c, cse_lines, float32_literal, op_count
 
@@ -112,8 +112,9 @@ def servo_context(m: config.Model):
     for j in range(3):
         lo, hi = servo.unit_range(m, j)
         joints.append({
-            "to_units": c(servo.joint_to_units(m, j, angle)),
-            "to_angle": c(servo.units_to_joint(m, j, units)),
+            # constants folded at generation time: one multiply-add, no division by pi
+            "to_units": c(sp.expand(servo.joint_to_units(m, j, angle)).evalf(40)),
+            "to_angle": c(sp.expand(servo.units_to_joint(m, j, units)).evalf(40)),
             "units_min": lo, "units_max": hi,
         })
     return {"joints": joints}
@@ -131,7 +132,42 @@ def estimator_context(m: config.Model):
     angles = dict(angles=(attitude.roll, attitude.pitch), c_angles=("e->roll", "e->pitch"),
                   names=("sr", "cr", "sp", "cp"),
                   cached=("e->sin_roll", "e->cos_roll", "e->sin_pitch", "e->cos_pitch"))
+    Q, QH, B, U, W = quaternion.Q, quaternion.QH, quaternion.BIAS, quaternion.UP, quaternion.RATE
+    q_c, qh_c, b_c = [f"e->q[{i}]" for i in range(4)], [f"q_hist[{i}]" for i in range(4)], [f"e->bias[{i}]" for i in range(3)]
+    q_next, b_next, rate, up_next = quaternion.step(m)
+    quat_step = _function([(f"const float q{i}", q_next[i]) for i in range(4)]
+                          + [(f"const float b{i}", b_next[i]) for i in range(3)]
+                          + [(f"e->rate[{i}]", rate[i]) for i in range(3)]
+                          + [(f"up[{i}]", up_next[i]) for i in range(3)],
+                          Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.GATE),
+                          q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "gate"])
+    quat_gate = _function([("const float gate", quaternion.accel_gate(m))], Q + acc + (quaternion.INNOVATION,),
+                          q_c + acc_c + ["innovation_scale"], prefix="g")
+    corr, err = quaternion.link_error()
+    link = _function([(f"c[{i}]", corr[i]) for i in range(4)] + [(f"err[{i}]", err[i]) for i in range(3)],
+                     QH + (quaternion.LINK_SR, quaternion.LINK_CR, quaternion.LINK_SP, quaternion.LINK_CP, quaternion.LINK_K),
+                     qh_c + ["sr", "cr", "sp", "cp", "k_link"])
+    q_arg = [f"q[{i}]" for i in range(4)]
+    left = _function([(f"const float r{i}", v) for i, v in enumerate(quaternion.rotate_left())], Q + quaternion.CORR,
+                     q_arg + [f"c[{i}]" for i in range(4)])
+    bias_up = _function([(f"bias[{i}]", v) for i, v in enumerate(quaternion.bias_update(m))],
+                        B + quaternion.ERR + (quaternion.LINK_KB,),
+                        [f"bias[{i}]" for i in range(3)] + [f"err[{i}]" for i in range(3)] + ["k_bias"])
+    up_acc = quaternion.from_up(attitude.mounting(m) * sp.Matrix(acc))
+    point = quaternion.command_point(m)
+    est_rate = quaternion.rate_of(m)
     return {
+        "quat_step": quat_step,
+        "quat_gate": quat_gate,
+        "quat_link": link,
+        "quat_left": left,
+        "bias_update": bias_up,
+        "quat_from_acc": _function([(f"q[{i}]", up_acc[i]) for i in range(4)], acc, acc_c),
+        "quat_up": _function([(f"up[{i}]", v) for i, v in enumerate(quaternion.up_of(Q))], Q, [f"q[{i}]" for i in range(4)]),
+        "rate": _function([(f"rate[{i}]", est_rate[i]) for i in range(3)], gyro + B,
+                          gyro_c + [f"bias[{i}]" for i in range(3)]),
+        "point": _function([(f"p_base[{i}]", point[i]) for i in range(3)], U + W + p,
+                           [f"up[{i}]" for i in range(3)] + [f"rate[{i}]" for i in range(3)] + p_c),
         "tilt": _function([("*roll", tilt[0]), ("*pitch", tilt[1])], acc, acc_c),
         "step": _function([("const float next_roll", step[0]), ("const float next_pitch", step[1])],
                           (attitude.roll, attitude.pitch) + acc + gyro, ["e->roll", "e->pitch"] + acc_c + gyro_c,
@@ -163,6 +199,29 @@ def params_context(m: config.Model):
         "accel_g_per_lsb": float32_literal(sp.Rational(1, lsb_per_g)),
         # full scale over 32768 LSB (the datasheet's 131, 65.5, 32.8, 16.4 LSB/(deg/s) rounded it)
         "gyro_rad_per_lsb": float32_literal(sp.pi * m.gyro_range_dps / 180 / 32768),
+        "est": estimator_params(m),
+    }
+
+
+def estimator_params(m: config.Model):
+    e = m.estimator
+    us = lambda s: round(s * 1e6)
+    return {
+        "quaternion": int(e.kind == "quaternion"),
+        "drone_attitude": int(e.drone_attitude),
+        "accel_gain": float32_literal(e.accel_gain),
+        "bias_gain": float32_literal(e.bias_gain),
+        "align_accel_gain": float32_literal(e.align_accel_gain),
+        "align_bias_gain": float32_literal(e.align_bias_gain),
+        "innovation_scale": float32_literal(1 / sp.sin(sp.rad(sp.nsimplify(e.accel_reject_deg, rational=True))) ** 2),
+        "link_gain": float32_literal(e.link_gain),
+        "link_bias_gain": float32_literal(e.link_bias_gain),
+        "link_delay_min_us": us(e.link_delay_min),
+        "link_delay_max_us": us(e.link_delay_max),
+        "link_timeout_us": us(e.link_timeout),
+        # ticks of history: the longest accepted delay, one more to interpolate, one spare
+        "history": int(sp.ceiling(sp.nsimplify(e.link_delay_max, rational=True) * sp.nsimplify(m.sample_rate, rational=True))) + 2,
+        "lead_time": float32_literal(e.lead_time),
     }
 
 

@@ -91,6 +91,31 @@ class Model:
     accel_filter: Filter
     gyro_filter: Filter
     complementary_gyro_weight: float
+    estimator: "Estimator"
+
+
+ESTIMATOR_KINDS = ("complementary", "quaternion")
+HISTORY_MAX = 32    # samples of attitude history the firmware keeps (stabiliser.h STAB_HISTORY)
+
+
+@dataclass(frozen=True)
+class Estimator:
+    """[estimator]: which attitude estimator, its gains, the drone-attitude fusion and the lead."""
+    kind: str                      # "complementary" | "quaternion"
+    accel_gain: float              # 1/s, quaternion: accelerometer correction in flight (engaged)
+    bias_gain: float               # 1/s^2, quaternion: gyro-bias integral gain in flight
+    align_accel_gain: float        # 1/s, while the arm is not engaged (at rest, before flight)
+    align_bias_gain: float         # 1/s^2, idem
+    accel_reject_g: float          # g: accelerometer weight falls to 0 at this |norm - 1 g|
+    accel_reject_deg: float        # deg: ... and at this angle from the gyro-propagated up (in flight)
+    gyro_bias_max_dps: float       # deg/s: the bias estimate's clamp
+    drone_attitude: bool           # fuse the drone's attitude from the link
+    link_gain: float               # 0..1: fraction of the measured tilt error removed per message
+    link_bias_gain: float          # 1/s: gyro-bias correction from the link's error
+    link_delay_min: float          # s: the link's smallest delay (measurement to arrival)
+    link_delay_max: float          # s: older measurements are refused (history length)
+    link_timeout: float            # s: without a fresh message, the IMU alone again
+    lead_time: float               # s: command ahead along the measured rate (0: off)
 
 
 class _Reader:
@@ -138,6 +163,18 @@ class _Reader:
             raise self.fail(key, f"must be <= {hi}, got {value}")
         if choices is not None and value not in choices:
             raise self.fail(key, f"must be one of {sorted(choices)}, got {value}")
+        return value
+
+    def boolean(self, key: str) -> bool:
+        value = self.get(key)
+        if not isinstance(value, bool):
+            raise self.fail(key, f"expected true or false, got {type(value).__name__} {value!r}")
+        return value
+
+    def choice(self, key: str, choices) -> str:
+        value = self.get(key)
+        if not isinstance(value, str) or value not in choices:
+            raise self.fail(key, f"must be one of {', '.join(repr(c) for c in choices)}, got {value!r}")
         return value
 
     def number_list(self, key: str, *, lo=None, hi=None) -> tuple[float, ...]:
@@ -240,6 +277,7 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         accel_filter=filters[0],
         gyro_filter=filters[1],
         complementary_gyro_weight=r.number("estimator.complementary_gyro_weight", lo=0.0, hi=1.0),
+        estimator=_estimator(r, sample_rate),
     )
     _check_servo_travel(r, model)
     return model
@@ -279,6 +317,41 @@ def _offset(r: _Reader, key: str) -> tuple[float, float, float]:
     if len(values) != 3:
         raise r.fail(key, f"expected 3 lengths in mm (x, y, z), got {len(values)}")
     return values
+
+
+def _estimator(r: _Reader, sample_rate: float) -> Estimator:
+    dt = 1.0 / sample_rate
+    k = "estimator."
+    # Gains above half the sample rate would overshoot in one step.
+    gain = lambda key: r.number(k + key, nonnegative=True, hi=sample_rate / 2)
+    bias_gain = lambda key: r.number(k + key, nonnegative=True, hi=(sample_rate / 2) ** 2 / 4)
+    est = Estimator(
+        kind=r.choice(k + "kind", ESTIMATOR_KINDS),
+        accel_gain=gain("accel_gain"),
+        bias_gain=bias_gain("bias_gain"),
+        align_accel_gain=gain("align_accel_gain"),
+        align_bias_gain=bias_gain("align_bias_gain"),
+        accel_reject_g=r.number(k + "accel_reject_g", lo=0.001, hi=1.0),
+        accel_reject_deg=r.number(k + "accel_reject_deg", lo=0.1, hi=90.0),
+        gyro_bias_max_dps=r.number(k + "gyro_bias_max_dps", nonnegative=True, hi=100.0),
+        drone_attitude=r.boolean(k + "drone_attitude"),
+        link_gain=r.number(k + "link_gain", lo=0.0, hi=1.0),
+        link_bias_gain=r.number(k + "link_bias_gain", nonnegative=True, hi=sample_rate / 2),
+        link_delay_min=r.number(k + "link_delay_min", nonnegative=True, hi=1.0),
+        link_delay_max=r.number(k + "link_delay_max", lo=dt, hi=0.5),
+        link_timeout=r.number(k + "link_timeout", lo=2 * dt, hi=10.0),
+        lead_time=r.number(k + "lead_time", nonnegative=True, hi=0.2),
+    )
+    if est.link_delay_min >= est.link_delay_max:
+        raise r.fail(k + "link_delay_min", f"must be less than link_delay_max ({est.link_delay_max}), "
+                                           f"got {est.link_delay_min}")
+    if math.ceil(est.link_delay_max * sample_rate) + 2 > HISTORY_MAX:
+        raise r.fail(k + "link_delay_max", f"the attitude history holds {HISTORY_MAX - 2} samples: at most "
+                                           f"{(HISTORY_MAX - 2) / sample_rate} s at {sample_rate} Hz, got {est.link_delay_max}")
+    if est.drone_attitude and est.kind != "quaternion":
+        raise r.fail(k + "drone_attitude", "the drone's attitude is fused by the quaternion estimator only: "
+                                           "set kind = \"quaternion\" or drone_attitude = false")
+    return est
 
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:

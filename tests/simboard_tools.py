@@ -20,7 +20,7 @@ import numpy as np
 
 import oracles
 from uavarm import ax12_sim, messages
-from uavarm.board import SimBoard, baud_register
+from uavarm.board import SimBoard, baud_register, specific_force_up
 from uavarm.model import config, servo as servo_map
 
 MODEL = config.load()
@@ -284,3 +284,32 @@ def run_to_next_heartbeat(board: SimBoard) -> dict:
 def servo_c(board: SimBoard, j: int):
     """The driver's record of joint j's servo (counters), from the application's state."""
     return board.app.bus.servo[j]
+
+
+@dataclass
+class Tilt:
+    """The board turned smoothly (raised cosine, `duration` s from t0) from one roll/pitch
+    (rad) to another, with the gyro rates of that turn: a physical tilt, which a gated
+    estimator follows (an instant jump of Gravity has no rate and only the accelerometer
+    sees it)."""
+    start: tuple
+    end: tuple
+    t0: float
+    duration: float = 0.5
+
+    def _s(self, t):
+        x = min(max((t - self.t0) / self.duration, 0.0), 1.0)
+        return 0.5 - 0.5 * math.cos(math.pi * x), (0.5 * math.pi * math.sin(math.pi * x) / self.duration
+                                                    if 0.0 < x < 1.0 else 0.0)
+
+    def attitude(self, t):
+        s, _ = self._s(t)
+        return tuple(a + s * (b - a) for a, b in zip(self.start, self.end))
+
+    def imu(self, t):
+        _, ds = self._s(t)
+        roll, pitch = self.attitude(t)
+        roll_rate, pitch_rate = ((b - a) * ds for a, b in zip(self.start, self.end))
+        # body rates of Z-Y-X Euler rates with no yaw (as uavarm.board.Rocking)
+        gyro = (roll_rate, math.cos(roll) * pitch_rate, -math.sin(roll) * pitch_rate)
+        return specific_force_up(roll, pitch), gyro

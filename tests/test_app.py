@@ -21,7 +21,7 @@ from invariants import Invariants
 from simboard_tools import (
     FAULT, IDS, MODEL, PARK_Q, PARK_SPEED, PARK_UNITS, TICK, UNIT_RAD, UNIT_RANGE, WORKING_SPEED,
     BusLog, ee_of_units, joint_units, level_ik_ok, make_board, pose_ok, run_to_next_heartbeat, run_until, running,
-    shaft_units, sync_goal_speed, units_to_joints,
+    Tilt, shaft_units, sync_goal_speed, units_to_joints,
 )
 from uavarm import llcp, messages
 from uavarm.board import Gravity
@@ -32,6 +32,7 @@ HB = MODEL.heartbeat_period
 SILENCE = MODEL.link_silence_timeout
 FK_TOL_MM = 1.0                       # half a unit (0.15 deg) per joint at ~140 mm reach
 STAB_TOL_MM = 1.5
+STAB_TARGET = np.array([45.0, -10.0, -115.0])   # reachable at every tilt of the test with the mount offset
 UNITS_PER_S_PER_SPEED_UNIT = 0.111 * 6 * 1023 / 300   # AX12_FACTS: 0.111 rpm per unit
 
 
@@ -291,11 +292,15 @@ def test_heartbeat_period_fields_and_counters():
 ])
 def test_stabilised_end_effector_holds_the_level_target(roll_deg, pitch_deg):
     roll, pitch = math.radians(roll_deg), math.radians(pitch_deg)
-    board, log, _, settle = engaged_at(TARGET, motion=Gravity(roll, pitch))
+    r_wb = Rotation.from_euler("YX", [pitch, roll]).as_matrix()     # Ry(pitch) Rx(roll)
+    # the base swings about the drone's centre of rotation, offset o from the base origin:
+    # a level-frame point p is R^T (o + p) - o in the tilted base frame
+    o = np.array(MODEL.mount_offset)
+    assert level_ik_ok(r_wb.T @ (o + STAB_TARGET) - o), "reachable at this tilt by the oracle"
+    board, log, _, settle = engaged_at(STAB_TARGET, motion=Gravity(roll, pitch))
     board.run(0.05)
     ee_base = ee_of_units(shaft_units(board))
-    r_wb = Rotation.from_euler("YX", [pitch, roll]).as_matrix()     # Ry(pitch) Rx(roll)
-    err = np.linalg.norm(r_wb @ ee_base - TARGET)
+    err = np.linalg.norm(r_wb @ (o + ee_base) - o - STAB_TARGET)
     print(f"\ntilt roll {roll_deg:+d} pitch {pitch_deg:+d} deg: settled in {settle:.3f} s, "
           f"end effector {err:.3f} mm from the level target")
     assert err <= STAB_TOL_MM
@@ -304,11 +309,11 @@ def test_stabilised_end_effector_holds_the_level_target(roll_deg, pitch_deg):
 
 
 def test_tilt_that_puts_the_target_out_of_reach_holds_the_joints():
-    tilted = Gravity(math.radians(60), 0.0)
-    r_wb = Rotation.from_euler("X", tilted.roll).as_matrix()
-    assert not level_ik_ok(r_wb.T @ np.array(TARGET)), "the oracle agrees it is out of reach"
+    r_wb = Rotation.from_euler("X", math.radians(60)).as_matrix()
+    o = np.array(MODEL.mount_offset)
+    assert not level_ik_ok(r_wb.T @ (o + TARGET) - o), "the oracle agrees it is out of reach"
     board, log, t_eng, _ = engaged_at(TARGET)
-    board.motion = tilted
+    board.motion = Tilt((0.0, 0.0), (math.radians(60), 0.0), board.time)
     board.run(0.8)
     set_position(board, TARGET)                  # keep the link alive
     t_hold = board.time
@@ -318,11 +323,11 @@ def test_tilt_that_puts_the_target_out_of_reach_holds_the_joints():
     assert pose_ok(next(iter(goals)))
     hb = run_to_next_heartbeat(board)
     assert hb["faults"] & FAULT["out_of_reach"] and hb["engaged"] == 1 and hb["unreachable"] == 0
-    board.motion = Gravity()
+    board.motion = Tilt((math.radians(60), 0.0), (0.0, 0.0), board.time)
     set_position(board, TARGET)
     board.run(0.7)
     set_position(board, TARGET)
-    board.run(0.6)               # the complementary filter forgets 5 % of the step per sample
+    board.run(0.6)
     err = np.linalg.norm(ee_of_units(shaft_units(board)) - TARGET)
     assert err <= FK_TOL_MM
     hb = run_to_next_heartbeat(board)
@@ -514,15 +519,17 @@ def test_rocking_bench_is_stabilised():
     board.send("enable", on=1)
     board.run(1.5)
     errors = []
+    o = np.array(MODEL.mount_offset)
     for k in range(50):
-        set_position(board, TARGET)          # also keeps the link alive
+        set_position(board, STAB_TARGET)     # also keeps the link alive
         if k == 0:
             board.send("engage", on=1)
         board.run(0.1)
         if k >= 10:
             ee = oracles.arm_points(MODEL, board.servo_joints())[2]
             roll, pitch = motion.attitude(board.time)
-            errors.append(np.linalg.norm(Rotation.from_euler("YX", [pitch, roll]).as_matrix() @ ee - np.array(TARGET)))
+            r_wb = Rotation.from_euler("YX", [pitch, roll]).as_matrix()
+            errors.append(np.linalg.norm(r_wb @ (o + ee) - o - STAB_TARGET))   # about the centre of rotation
     rms = float(np.sqrt(np.mean(np.square(errors))))
     print(f"rocking +-10 deg at 0.2 Hz: end-effector error rms {rms:.2f} mm, max {max(errors):.2f} mm")
     assert rms < 2.0 and max(errors) < 3.0

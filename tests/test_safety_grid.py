@@ -98,9 +98,10 @@ def test_model_never_selects_an_unsafe_pose():
     park = np.radians(m.park_deg)
     chosen, near = 0, 0
     for roll, pitch in tilts:
-        # p_base = (Ry(pitch) Rx(roll))^T p_level, from scipy
+        # p_base = (Ry(pitch) Rx(roll))^T (o + p_level) - o, from scipy (o: the mount offset)
         r_wb = Rotation.from_euler("YX", [pitch, roll]).as_matrix()
-        q = model_solutions(m, targets @ r_wb, park)
+        o = np.array(m.mount_offset)
+        q = model_solutions(m, (targets + o) @ r_wb - o, park)
         valid = ~np.isnan(q[:, 0])
         chosen += int(valid.sum())
         near += assert_safe(m, q[valid], f"model at roll {math.degrees(roll):.0f}, pitch {math.degrees(pitch):.0f}")

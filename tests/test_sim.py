@@ -160,10 +160,14 @@ def test_a_constant_tilt_with_an_ideal_imu_scores_the_servo_resolution(tmp_path)
     (tmp_path / "log.csv").write_text("t,roll,pitch,ax,ay,az\n0,12,-7,0,0,0\n30,12,-7,0,0,0\n")
     (tmp_path / "s.toml").write_text('kind = "replay"\n[motion]\ncsv = "log.csv"\n[imu]\nprofile = "ideal"\n')
     no_link = sim.Settings(seconds=3.0, settle=2.0, preflight=2.0, drone_attitude=False)
-    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0]}, settings=no_link)
+    run = _run(scenarios.load(tmp_path / "s.toml"), {"mount.offset": [0.0, 0.0, 0.0], "estimator.drone_attitude": False},
+               settings=no_link)
     m = run.metrics()
     assert m["max"] < 1.5 and m["att_max"] < 0.5, m
     assert not run.faults and run.out_of_reach_ticks == 0
+
+
+FAULT_OUT_OF_REACH = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
 
 
 @pytest.mark.parametrize("scenario, att_rms_deg", [("bench", 2.0), ("hover", 6.0), ("manoeuvre", 10.0)])
@@ -177,8 +181,7 @@ def test_each_scenario_closes_the_loop(scenario, att_rms_deg):
     assert m["seconds"] == pytest.approx(3.0, abs=0.02)
     assert m["rms"] < 40.0 and m["max"] < 60.0, m
     assert m["att_rms"] < att_rms_deg, m
-    out_of_reach = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
-    assert all(f & ~out_of_reach == 0 for f in run.faults), run.faults
+    assert all(f & ~FAULT_OUT_OF_REACH == 0 for f in run.faults), run.faults
     assert run.out_of_reach_ticks <= 0.05 * len(run.t)
     assert run.last_heartbeat["engaged"] == 1
 

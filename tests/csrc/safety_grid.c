@@ -16,6 +16,7 @@ size_t safety_grid(const float *targets, size_t n_targets, const float *tilts, s
     stab_reset(&s);
     for (size_t t = 0; t < n_tilts; ++t) {
         est_set(&s.attitude, tilts[2 * t], tilts[2 * t + 1]);
+        est_attitude_up(&s.attitude, s.up);   /* the stabiliser solves for its up direction (rate 0) */
         for (size_t i = 0; i < n_targets; ++i) {
             const size_t k = t * n_targets + i;
             float q[3];

@@ -93,6 +93,7 @@ typedef struct {
     uint8_t tx_len;
     uint8_t direct[DXL_STATUS_MIN_LEN + SBUS_VERIFY_LEN];   /* the expected reply so far */
     uint8_t direct_len;
+    uint8_t direct_sum;            /* its bytes from ID on, summed as they arrive (checksum) */
     bool resync;                   /* this request's bytes go through the parser */
     const uint8_t *reply_params;   /* the accepted reply's parameters */
     uint8_t rx_buf[SBUS_RX_MAX];
@@ -106,6 +107,7 @@ typedef struct {
     bool read_due;
     uint16_t goal[SBUS_SERVOS];
     uint16_t speed[SBUS_SERVOS];
+    uint8_t read_pkt[SBUS_SERVOS][8];   /* each servo's status READ, built once at init */
     uint8_t read_index;
     uint8_t read_attempt;
     uint32_t sync_writes;

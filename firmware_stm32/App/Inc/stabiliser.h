@@ -1,10 +1,13 @@
 /* The stabiliser's arithmetic, one IMU sample at a time: scaled IMU sample -> generated
- * Butterworth filters -> complementary attitude -> target turned into the tilted base
- * frame -> generated IK and selection. No I/O: app.c feeds it and commands the servos. */
+ * Butterworth filters -> attitude (the model's estimator: complementary, or quaternion with
+ * gyro bias and, optionally, the drone's attitude from the link) -> target turned into the
+ * tilted base frame, ahead by the model's lead time and about the drone's centre of rotation
+ * -> generated IK and selection. No I/O: app.c feeds it and commands the servos. */
 #ifndef STABILISER_H
 #define STABILISER_H
 
 #include <stdbool.h>
+#include <stdint.h>
 
 #include "estimator.h"
 #include "filters.h"
@@ -15,25 +18,62 @@ extern "C" {
 #endif
 
 /* cffi:begin */
+#define STAB_HISTORY 32            /* ticks of attitude history, at least the model's link_delay_max */
+
+/* Why a drone_attitude message was refused (stab_drone_attitude). */
+typedef enum {
+    STAB_LINK_ACCEPTED = 0,
+    STAB_LINK_OFF = 1,             /* the model does not fuse the drone's attitude */
+    STAB_LINK_NOT_FINITE = 2,      /* roll or pitch NaN, infinite or beyond +-pi, +-pi/2 */
+    STAB_LINK_OUT_OF_ORDER = 3,    /* seq or stamp not newer than the last accepted one */
+    STAB_LINK_STALE = 4,           /* measured longer ago than the history (link_delay_max) */
+    STAB_LINK_OPPOSITE = 5         /* up side down from the estimate: no unique correction */
+} stab_link_status_t;
+
 typedef struct {
     filt_accel_t accel_filter[3];
     filt_gyro_t gyro_filter[3];
-    est_attitude_t attitude;
+    est_attitude_t attitude;       /* complementary estimator */
+    est_quat_t quat;               /* quaternion estimator */
+    float up[3];                   /* the estimate's up direction, base axes */
+    float rate[3];                 /* body rate for the lead, base axes, rad/s */
     bool started;                  /* a first sample has set filters and attitude */
+    /* the quaternion after each sample, and the time of that sample (for the link) */
+    float hist_q[STAB_HISTORY][4];
+    uint32_t hist_us[STAB_HISTORY];
+    uint8_t hist_next;             /* slot of the next sample */
+    uint8_t hist_len;
+    /* drone attitude over the link */
+    bool link_valid;               /* a message was accepted since the reset */
+    uint16_t link_seq;             /* of the last accepted message */
+    uint32_t link_stamp_us;        /* its stamp (drone clock) */
+    uint32_t link_accepted_us;     /* local time it was accepted */
+    uint32_t link_offset_us;       /* smallest (arrival - stamp) seen: the clocks' offset */
+    uint32_t link_delay_us;        /* the last accepted message's estimated delay */
+    uint32_t link_accepted;        /* counters */
+    uint32_t link_refused;
 } stab_t;
 
 void stab_reset(stab_t *s);
-/* One sample: accelerometer in g, gyro in rad/s, both in the IMU's axes. The first sample
- * after a reset starts filters and attitude at rest on it. */
-void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3]);
+/* One sample taken at now_us: accelerometer in g, gyro in rad/s, both in the IMU's axes.
+ * The first sample after a reset starts filters and attitude at rest on it. engaged selects
+ * the quaternion estimator's in-flight gains (else it aligns fast with the accelerometer). */
+void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], uint32_t now_us, bool engaged);
+/* The drone's roll and pitch (rad, Z-Y-X) from its flight controller, measured at stamp_us
+ * of its clock, message number seq, arriving at now_us: fused if the model says so and the
+ * message is finite, newer than the last and not older than the history. */
+stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_us, float roll, float pitch,
+                                       uint32_t now_us);
+/* Is the drone's attitude fresh (accepted within the model's link_timeout of now_us)? */
+bool stab_link_fresh(const stab_t *s, uint32_t now_us);
+/* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
+void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* Joints that put the end effector on target_level (level frame, mm) at the current
- * attitude: the valid IK candidate nearest q_now. Writes q_out only when it returns KIN_OK;
- * otherwise returns why the best candidate was refused. */
+ * attitude predicted lead_time ahead: the valid IK candidate nearest q_now. Writes q_out only
+ * when it returns KIN_OK; otherwise returns why the best candidate was refused. */
 kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3]);
 /* The same for a level base (no tilt): is target_level reachable at all? */
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3]);
-/* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
-void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* cffi:end */
 
 #ifdef __cplusplus

@@ -60,6 +60,13 @@ void app_request_tick(app_t *app)
 
 /* ------------------------------------------------------------------ commands */
 
+static void show_state(const app_t *app)
+{
+    app->port->led(app->port->ctx, 0, app->enabled);
+    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
+}
+
+
 static void set_enabled(app_t *app, bool on)
 {
     if (on == app->enabled) return;
@@ -71,6 +78,7 @@ static void set_enabled(app_t *app, bool on)
     }
     track_reset(&app->track);   /* readings from before a power cycle say nothing */
     sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
+    show_state(app);
 }
 
 static void on_set_position(app_t *app, const msg_set_position_t *m)
@@ -105,7 +113,9 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     } else if (msg_set_position_unpack(payload, len, &set)) {
         on_set_position(app, &set);
     } else if (msg_drone_attitude_unpack(payload, len, &attitude)) {
-        app->drone_attitudes++;   /* keeps the link alive; not fused into the estimate yet */
+        app->drone_attitudes++;
+        (void)stab_drone_attitude(&app->stab, attitude.seq, attitude.stamp_us, attitude.roll, attitude.pitch,
+                                  now_us(app));
     } else {
         app->commands_ignored++;
     }
@@ -167,7 +177,7 @@ static void sample_imu(app_t *app)
     app->imu_stale = 0;
     app->imu_samples_used++;
     mpu_scale(&raw, accel, gyro);
-    stab_sample(&app->stab, accel, gyro);
+    stab_sample(&app->stab, accel, gyro, now_us(app), app->engaged);
 }
 
 /* The joints to command this tick and their speed. */
@@ -198,11 +208,9 @@ static void command_servos(app_t *app)
     sbus_command(&app->bus, units, speeds);
 }
 
-static void show_state(const app_t *app)
-{
-    app->port->led(app->port->ctx, 0, app->enabled);
-    app->port->led(app->port->ctx, 1, app_faults(app) != 0);
-}
+
+/* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
+#define LED_EVERY_TICKS 10u
 
 static void tick(app_t *app)
 {
@@ -213,7 +221,7 @@ static void tick(app_t *app)
     }
     if (app->enabled) command_servos(app);
     app->faults_since_heartbeat |= app_faults(app) & APP_FAULTS_HELD;
-    show_state(app);
+    if (app->ticks_run % LED_EVERY_TICKS == 0u) show_state(app);
 }
 
 /* ------------------------------------------------------------------ heartbeat */

@@ -140,27 +140,42 @@ size_t dxl_build_sync_write(uint8_t *buf, size_t cap, uint8_t addr, uint8_t data
     return frame(buf, DXL_BROADCAST_ID, DXL_INST_SYNC_WRITE, n_params);
 }
 
+/* The stabiliser's packet, every tick: one pass writes the bytes and sums the checksum. */
 size_t dxl_build_sync_goal_speed(uint8_t *buf, size_t cap, size_t n_servos, const uint8_t *ids,
                                  const uint16_t *goal, const uint16_t *speed)
 {
-    size_t n_params = sync_params(n_servos, 4, ids);
-    if (n_params == 0 || goal == NULL || speed == NULL || !fits(buf, cap, n_params)) {
+    if (buf == NULL || ids == NULL || goal == NULL || speed == NULL || n_servos == 0
+        || n_servos > (DXL_MAX_PARAMS - 2u) / 5u) {
         return 0;
     }
-    uint8_t *out = buf + PKT_PARAMS;
-    *out++ = DXL_AX_GOAL_POSITION;
-    *out++ = 4;
+    const size_t n_params = 2u + 5u * n_servos;
+    if (n_params + 6u > cap) {
+        return 0;
+    }
+    buf[0] = 0xFF;
+    buf[1] = 0xFF;
+    buf[PKT_ID] = DXL_BROADCAST_ID;
+    buf[PKT_LEN] = (uint8_t)(n_params + 2u);
+    buf[PKT_INST] = DXL_INST_SYNC_WRITE;
+    buf[PKT_PARAMS] = DXL_AX_GOAL_POSITION;
+    buf[PKT_PARAMS + 1u] = 4;
+    unsigned sum = DXL_BROADCAST_ID + (unsigned)(n_params + 2u) + DXL_INST_SYNC_WRITE + DXL_AX_GOAL_POSITION + 4u;
+    uint8_t *out = buf + PKT_PARAMS + 2u;
     for (size_t i = 0; i < n_servos; i++) {
-        if (goal[i] > DXL_AX_POSITION_MAX || speed[i] > DXL_AX_SPEED_MAX) {
+        const unsigned id = ids[i], g = goal[i], v = speed[i];
+        if (id > DXL_MAX_ID || g > DXL_AX_POSITION_MAX || v > DXL_AX_SPEED_MAX) {
             return 0;  /* the servo would answer a range error nobody hears */
         }
-        *out++ = ids[i];
-        *out++ = (uint8_t)(goal[i] & 0xFFu);
-        *out++ = (uint8_t)(goal[i] >> 8);
-        *out++ = (uint8_t)(speed[i] & 0xFFu);
-        *out++ = (uint8_t)(speed[i] >> 8);
+        out[0] = (uint8_t)id;
+        out[1] = (uint8_t)g;
+        out[2] = (uint8_t)(g >> 8);
+        out[3] = (uint8_t)v;
+        out[4] = (uint8_t)(v >> 8);
+        sum += id + (g & 0xFFu) + (g >> 8) + (v & 0xFFu) + (v >> 8);
+        out += 5;
     }
-    return frame(buf, DXL_BROADCAST_ID, DXL_INST_SYNC_WRITE, n_params);
+    *out = (uint8_t)~sum;
+    return n_params + 6u;
 }
 
 /* ------------------------------------------------------------------ parser */

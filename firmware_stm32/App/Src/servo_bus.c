@@ -45,6 +45,7 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
     bus->byte_us = (10u * 1000000u + baud - 1u) / baud;   /* start + 8 data + stop bits */
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         bus->servo[i].id = ids[i];
+        (void)dxl_build_read(bus->read_pkt[i], sizeof bus->read_pkt[i], ids[i], SBUS_STATUS_ADDR, SBUS_STATUS_LEN);
     }
     (void)dxl_parser_init(&bus->parser, bus->rx_buf, sizeof bus->rx_buf);
     enter(bus, SBUS_OFF);
@@ -158,7 +159,7 @@ static bool direct_byte(sbus_t *bus, uint8_t byte)
     case 2: fits = byte == bus->expect_id; break;
     case 3: fits = byte == bus->expect_params + 2u; break;
     case 4: fits = byte <= 0x7Fu; break;
-    default: fits = i + 1u < total || dxl_checksum(bus->direct + 2, total - 3u) == byte; break;
+    default: fits = i + 1u < total || (uint8_t)(bus->direct_sum + byte) == 0xFFu; break;
     }
     if (!fits) {
         bus->resync = true;
@@ -168,6 +169,7 @@ static bool direct_byte(sbus_t *bus, uint8_t byte)
         return parse_byte(bus, byte);
     }
     bus->direct[bus->direct_len++] = byte;
+    if (i >= 2u) bus->direct_sum = (uint8_t)(bus->direct_sum + byte);
     if (bus->direct_len < total) return false;
     sbus_servo_t *s = servo_of(bus, bus->expect_id);
     if (s != NULL) note_error_byte(s, bus->direct[4]);
@@ -194,6 +196,22 @@ static bool transaction_done(sbus_t *bus, int *how)
     size_t n;
     while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
         for (size_t i = 0; i < n; ++i) {
+            if (!bus->resync && bus->direct_len >= 5u) {
+                /* the parameters always fit: copied and summed in locals (a byte store
+                 * through bus would make the compiler reload every field); the checksum
+                 * byte goes through direct_byte */
+                const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
+                unsigned len = bus->direct_len, sum = bus->direct_sum;
+                uint8_t *dst = bus->direct;
+                while (i < n && len + 1u < total) {
+                    const uint8_t b = chunk[i++];
+                    dst[len++] = b;
+                    sum += b;
+                }
+                bus->direct_len = (uint8_t)len;
+                bus->direct_sum = (uint8_t)sum;
+                if (i == n) break;
+            }
             if (bus->resync ? parse_byte(bus, chunk[i]) : direct_byte(bus, chunk[i])) {
                 bus->phase = PHASE_IDLE;
                 *how = DONE_OK;
@@ -217,6 +235,7 @@ static void flush_rx(sbus_t *bus)
     }
     dxl_parser_reset(&bus->parser);
     bus->direct_len = 0;
+    bus->direct_sum = 0;
     bus->resync = false;
 }
 
@@ -348,8 +367,8 @@ static void run(sbus_t *bus)
     } else if (bus->read_due) {
         flush_rx(bus);
         const sbus_servo_t *s = &bus->servo[bus->read_index];
-        size_t len = dxl_build_read(bus->tx, sizeof bus->tx, s->id, SBUS_STATUS_ADDR, SBUS_STATUS_LEN);
-        if (start(bus, len, REPLY_REQUIRED, s->id, SBUS_STATUS_LEN)) {
+        memcpy(bus->tx, bus->read_pkt[bus->read_index], sizeof bus->read_pkt[0]);
+        if (start(bus, sizeof bus->read_pkt[0], REPLY_REQUIRED, s->id, SBUS_STATUS_LEN)) {
             bus->read_due = false;
         }
     }

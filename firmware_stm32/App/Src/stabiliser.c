@@ -1,30 +1,170 @@
-/* Filters, attitude and IK for one tick; see stabiliser.h. */
+/* Filters, attitude, drone-attitude fusion and IK for one tick; see stabiliser.h. */
 #include "stabiliser.h"
 
+#include <math.h>
 #include <string.h>
+
+#include "fastmath.h"
+#include "model_params.h"
+
+/* The history must cover the longest accepted link delay (model/config.py checks it too). */
+typedef char stab_history_fits[(MODEL_LINK_HISTORY <= STAB_HISTORY) ? 1 : -1];
+
+/* The clocks' offset estimate may rise by this much per accepted message, so that it follows
+ * a drone clock running slower than ours (100 ppm at 50 messages/s). */
+#define LINK_OFFSET_CREEP_US 2u
 
 void stab_reset(stab_t *s)
 {
     memset(s, 0, sizeof *s);
     est_set(&s->attitude, 0.0f, 0.0f);   /* level until the first sample */
+    s->quat.q[0] = 1.0f;
+    s->up[2] = 1.0f;
 }
 
-void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3])
+#if MODEL_ESTIMATOR_QUATERNION
+static void remember(stab_t *s, uint32_t now_us)
 {
-    float acc[3], gyro[3];
+    memcpy(s->hist_q[s->hist_next], s->quat.q, sizeof s->quat.q);
+    s->hist_us[s->hist_next] = now_us;
+    s->hist_next = (uint8_t)((s->hist_next + 1u) % MODEL_LINK_HISTORY);
+    if (s->hist_len < MODEL_LINK_HISTORY) s->hist_len++;
+}
+#endif
+
+bool stab_link_fresh(const stab_t *s, uint32_t now_us)
+{
+    return MODEL_DRONE_ATTITUDE && s->link_valid && now_us - s->link_accepted_us < MODEL_LINK_TIMEOUT_US;
+}
+
+void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], uint32_t now_us, bool engaged)
+{
+    float acc[3];
     if (!s->started) {
         for (int i = 0; i < 3; ++i) {
             filt_accel_reset(&s->accel_filter[i], accel_g[i]);
             filt_gyro_reset(&s->gyro_filter[i], gyro_rad_s[i]);
         }
         est_reset(&s->attitude, accel_g);
+        est_quat_reset(&s->quat, accel_g);
         s->started = true;
     }
-    for (int i = 0; i < 3; ++i) {
-        acc[i] = filt_accel_step(&s->accel_filter[i], accel_g[i]);
-        gyro[i] = filt_gyro_step(&s->gyro_filter[i], gyro_rad_s[i]);
+    for (int i = 0; i < 3; ++i) acc[i] = filt_accel_step(&s->accel_filter[i], accel_g[i]);
+#if MODEL_ESTIMATOR_QUATERNION
+    /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
+    if (stab_link_fresh(s, now_us)) {
+        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, s->up);   /* the drone's attitude corrects */
+    } else if (engaged) {
+        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
+                      s->up);
+    } else {
+        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, s->up);
     }
+    memcpy(s->rate, s->quat.rate, sizeof s->rate);
+    if (MODEL_DRONE_ATTITUDE) remember(s, now_us);
+#else
+    static const float no_bias[3] = { 0.0f, 0.0f, 0.0f };
+    float gyro[3];
+    (void)engaged;
+    (void)now_us;
+    for (int i = 0; i < 3; ++i) gyro[i] = filt_gyro_step(&s->gyro_filter[i], gyro_rad_s[i]);
     est_complementary_step(&s->attitude, acc, gyro);
+    est_attitude_up(&s->attitude, s->up);
+    est_rate(gyro, no_bias, s->rate);
+#endif
+}
+
+static void normalise4(float q[4])
+{
+    const float inv = 1.0f / sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    for (int i = 0; i < 4; ++i) q[i] *= inv;
+}
+
+/* The estimate's attitude at local time t (interpolated between samples, extrapolated past
+ * the last one); false if t is older than the history. */
+static bool attitude_at(const stab_t *s, uint32_t t, float q[4])
+{
+    unsigned newer = MODEL_LINK_HISTORY;   /* none yet */
+    for (unsigned n = 0; n < s->hist_len; ++n) {
+        const unsigned k = (s->hist_next + MODEL_LINK_HISTORY - 1u - n) % MODEL_LINK_HISTORY;
+        const int32_t ahead = (int32_t)(t - s->hist_us[k]);
+        if (ahead >= 0) {
+            if (newer == MODEL_LINK_HISTORY) {
+                /* after the last sample: ahead along its rate, q (x) (1, w dt / 2) */
+                const float h = 0.5e-6f * (float)ahead;
+                const float *p = s->hist_q[k], *w = s->quat.rate;
+                const float d[4] = { 1.0f, w[0] * h, w[1] * h, w[2] * h };
+                q[0] = p[0] * d[0] - p[1] * d[1] - p[2] * d[2] - p[3] * d[3];
+                q[1] = p[0] * d[1] + p[1] * d[0] + p[2] * d[3] - p[3] * d[2];
+                q[2] = p[0] * d[2] - p[1] * d[3] + p[2] * d[0] + p[3] * d[1];
+                q[3] = p[0] * d[3] + p[1] * d[2] - p[2] * d[1] + p[3] * d[0];
+                normalise4(q);
+                return true;
+            }
+            const float f = (float)ahead / (float)(s->hist_us[newer] - s->hist_us[k]);
+            for (int i = 0; i < 4; ++i) q[i] = s->hist_q[k][i] + f * (s->hist_q[newer][i] - s->hist_q[k][i]);
+            normalise4(q);
+            return true;
+        }
+        newer = k;
+    }
+    return false;
+}
+
+stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_us, float roll, float pitch,
+                                       uint32_t now_us)
+{
+    stab_link_status_t why = STAB_LINK_ACCEPTED;
+    const bool fresh = stab_link_fresh(s, now_us);
+    float q_then[4], c[4], err[3];
+    if (!MODEL_DRONE_ATTITUDE || !MODEL_ESTIMATOR_QUATERNION) {
+        why = STAB_LINK_OFF;
+    } else if (!(fabsf(roll) <= 3.1415927f && fabsf(pitch) <= 1.5707964f)) {   /* NaN fails too */
+        why = STAB_LINK_NOT_FINITE;
+    } else if (fresh && ((int16_t)(uint16_t)(seq - s->link_seq) <= 0
+                         || (int32_t)(stamp_us - s->link_stamp_us) <= 0)) {
+        why = STAB_LINK_OUT_OF_ORDER;   /* after a silence a restarted sender is taken again */
+    }
+    if (why != STAB_LINK_ACCEPTED) {
+        s->link_refused++;
+        return why;
+    }
+    /* Delay: arrival - stamp is the clocks' offset plus the delay; its smallest value is the
+     * offset plus the link's smallest delay (from the model). */
+    const uint32_t arrival = now_us - stamp_us;
+    uint32_t offset = fresh ? s->link_offset_us + LINK_OFFSET_CREEP_US : arrival;
+    if ((int32_t)(arrival - offset) < 0) offset = arrival;
+    const uint32_t delay = arrival - offset + MODEL_LINK_DELAY_MIN_US;
+    if (delay > MODEL_LINK_DELAY_MAX_US || !attitude_at(s, now_us - delay, q_then)) {
+        s->link_refused++;
+        return STAB_LINK_STALE;
+    }
+    est_link_error(q_then, roll, pitch, MODEL_LINK_GAIN, c, err);
+    if (!(c[0] > 1e-6f)) {   /* c[0] = 1 + cos(disagreement): ~180 deg has no rotation axis */
+        s->link_refused++;
+        return STAB_LINK_OPPOSITE;
+    }
+    est_quat_rotate_left(c, s->quat.q);
+    /* the history takes the same level-frame correction: the next message compares with it */
+    for (unsigned n = 0; n < s->hist_len; ++n) est_quat_rotate_left(c, s->hist_q[n]);
+    /* the error left after each correction is (bias error) x (message period) / link_gain, so
+     * this moves the bias at link_bias_gain / link_gain per second, whatever the message rate */
+    est_bias_update(s->quat.bias, err, MODEL_LINK_BIAS_GAIN);
+    est_quat_up(s->quat.q, s->up);
+    s->link_valid = true;
+    s->link_seq = seq;
+    s->link_stamp_us = stamp_us;
+    s->link_accepted_us = now_us;
+    s->link_offset_us = offset;
+    s->link_delay_us = delay;
+    s->link_accepted++;
+    return STAB_LINK_ACCEPTED;
+}
+
+void stab_attitude(const stab_t *s, float *roll, float *pitch)
+{
+    *roll = fm_atan2f(s->up[1], s->up[2]);
+    *pitch = fm_atan2f(-s->up[0], sqrtf(s->up[1] * s->up[1] + s->up[2] * s->up[2]));
 }
 
 /* The first refusal reason of the candidates, when none is valid: unreachable beats the
@@ -50,17 +190,11 @@ static kin_status_t solve_base(const float p_base[3], const float q_now[3], floa
 kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3])
 {
     float p_base[3];
-    est_level_to_base(&s->attitude, target_level, p_base);
+    est_command_point(s->up, s->rate, target_level, p_base);
     return solve_base(p_base, q_now, q_out);
 }
 
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3])
 {
     return solve_base(target_level, q_now, q_out);
-}
-
-void stab_attitude(const stab_t *s, float *roll, float *pitch)
-{
-    *roll = s->attitude.roll;
-    *pitch = s->attitude.pitch;
 }
