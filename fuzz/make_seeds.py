@@ -5,7 +5,8 @@
 Every seed is a small valid input built with the project's own Python codecs: LLCP frames
 from uavarm.llcp / uavarm.messages, status packets answered by the AX-12A simulator
 (uavarm.ax12_sim), command sessions for the whole application in the op encoding that
-fuzz/app_link.c documents, and the model file. The folders are rewritten from scratch.
+fuzz/app_link.c documents, and the model file. The folders are rebuilt; regress-* inputs found by
+the fuzzers and committed by hand are kept.
 """
 from __future__ import annotations
 
@@ -240,9 +241,11 @@ def model_regressions() -> dict[str, bytes]:
 def write(name: str, seeds: list[bytes], named: dict[str, bytes] | None = None) -> None:
     """Seeds are named by their SHA-1, regression inputs by what they found."""
     folder = CORPUS / name
+    # regress-* inputs that a fuzzer found (committed by hand) are kept; the rest is rebuilt
+    found = {p.name: p.read_bytes() for p in folder.glob("regress-*")} if folder.is_dir() else {}
     shutil.rmtree(folder, ignore_errors=True)
     folder.mkdir(parents=True)
-    files = {hashlib.sha1(seed).hexdigest(): seed for seed in seeds} | (named or {})
+    files = found | {hashlib.sha1(seed).hexdigest(): seed for seed in seeds} | (named or {})
     for file_name, seed in files.items():
         assert len(seed) <= MAX_LEN[name], (file_name, len(seed))   # the harness's -max_len
         (folder / file_name).write_bytes(seed)

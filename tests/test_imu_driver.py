@@ -147,10 +147,6 @@ def test_dlpf_is_a_setting_the_datasheet_offers_at_the_1khz_rate():
     assert DLPF_TABLE[cfg][4] == 1000
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "model/manipulator.toml imu.dlpf_bandwidth = 44 Hz puts the 57 Hz edge of the propeller "
-    "band only 1.3x above the DLPF corner; 21 Hz (DLPF_CFG 4) is needed. The model file "
-    "belongs to another issue: change it there, then drop this marker."))
 def test_dlpf_puts_the_propeller_band_well_below_its_corner_without_lagging_a_tick():
     """Anti-aliasing before the 100 Hz sampling folds 57-97 Hz down to 3-43 Hz: the band's
     lower edge at least two corner frequencies up (both sensors, datasheet bandwidths),

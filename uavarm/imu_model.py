@@ -213,9 +213,9 @@ class Mpu6050Sensor:
         x[:, :3] = x[:, :3] * d.accel_scale + d.accel_bias
         x[:, 3:] = x[:, 3:] * d.gyro_scale + d.gyro_bias
         x += self.sample_errors(times)
-        x += self.rng.standard_normal(x.shape) * self.noise_std
         if self._cfg is None:
-            self._start(x[0])
+            self._start(x[0])   # at rest on the noise-free signal: a noise sample is no rest state
+        x += self.rng.standard_normal(x.shape) * self.noise_std
         self._cfg = dlpf_cfg
         b, a, z = self._b, self._a, self._z
         period = int(smplrt_div) + 1
