@@ -98,7 +98,7 @@ def test_codegen_cli_reports_model_errors(tmp_path, capsys):
     ("accel_range_g = 4 ", "accel_range_g = 3 ", "imu.accel_range_g", "one of [2, 4, 8, 16]"),
     ("accel_range_g = 4 ", "accel_range_g = 4.0 ", "imu.accel_range_g", "expected an integer"),
     ("gyro_range_dps = 500", "gyro_range_dps = 300", "imu.gyro_range_dps", "one of [250, 500, 1000, 2000]"),
-    ("dlpf_bandwidth = 44", "dlpf_bandwidth = 50", "imu.dlpf_bandwidth", "one of"),
+    ("dlpf_bandwidth = 21", "dlpf_bandwidth = 50", "imu.dlpf_bandwidth", "one of"),
     ("i2c_address = 0x68", "i2c_address = 0x70", "imu.i2c_address", "one of [104, 105]"),
     ("sample_rate = 100.0", "sample_rate = 300.0", "imu.sample_rate", "1000 Hz / n"),
     ("sample_rate = 100.0", "sample_rate = 2000.0", "imu.sample_rate", "1000 Hz / n"),
@@ -136,7 +136,7 @@ def test_new_keys_load(model):
     assert model.park_deg == (0.0, 60.0, -110.0)
     assert (model.link_silence_timeout, model.heartbeat_period, model.link_frame_gap) == (1.0, 0.5, 0.05)
     assert (model.imu_address, model.accel_range_g, model.gyro_range_dps, model.dlpf_bandwidth) == \
-        (0x68, 4, 500, 44)
+        (0x68, 4, 500, 21)
     assert model.imu_mounting_rpy_deg == (0.0, 0.0, 0.0)
     assert model.mount_offset == (0.0, 0.0, -80.0)
 
@@ -194,7 +194,7 @@ PARAMS_VARIANT = {
     "i2c_address = 0x68": "i2c_address = 0x69",
     "accel_range_g = 4 ": "accel_range_g = 16 ",
     "gyro_range_dps = 500": "gyro_range_dps = 2000",
-    "dlpf_bandwidth = 44": "dlpf_bandwidth = 94",
+    "dlpf_bandwidth = 21": "dlpf_bandwidth = 94",
     "return_delay_us = 20": "return_delay_us = 250",
     "park_speed_rpm = 10.0": "park_speed_rpm = 3.3",
     "working_speed_rpm = 59.0": "working_speed_rpm = 113.5",

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from . import drone, imu_model
+from .toml_text import toml_value
 
 KINDS = {"bench": drone.bench, "hover": drone.hover, "manoeuvre": drone.manoeuvre}
 CSV_COLUMNS = ("t", "roll", "pitch", "ax", "ay", "az")
@@ -192,26 +193,16 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
     return Scenario(name, kind, motion, profile, vibration, link, target, base_dir)
 
 
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    return repr(float(v))
-
-
 def dump(s: Scenario) -> str:
     """The scenario as a scenario file (parse(dump(s)) == s, base_dir aside)."""
-    lines = [f"name = {_toml_value(s.name)}", f"kind = {_toml_value(s.kind)}", "", "[motion]"]
-    lines += [f"{k} = {_toml_value(v)}" for k, v in s.motion.items()]
-    lines += ["", "[imu]", f"profile = {_toml_value(s.imu_profile)}"]
+    lines = [f"name = {toml_value(s.name)}", f"kind = {toml_value(s.kind)}", "", "[motion]"]
+    lines += [f"{k} = {toml_value(v)}" for k, v in s.motion.items()]
+    lines += ["", "[imu]", f"profile = {toml_value(s.imu_profile)}"]
     if s.vibration is not None:
-        lines.append(f"vibration = {_toml_value(s.vibration)}")
-    lines += ["", "[link]"] + [f"{f.name} = {_toml_value(getattr(s.link, f.name))}"
+        lines.append(f"vibration = {toml_value(s.vibration)}")
+    lines += ["", "[link]"] + [f"{f.name} = {toml_value(getattr(s.link, f.name))}"
                                for f in dataclasses.fields(LinkParams)]
-    lines += ["", "[arm]", f"target = {_toml_value(list(s.target))}", ""]
+    lines += ["", "[arm]", f"target = {toml_value(list(s.target))}", ""]
     return "\n".join(lines)
 
 

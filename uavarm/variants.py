@@ -17,6 +17,7 @@ from pathlib import Path
 
 from . import cbuild, firmware
 from .model import config
+from .toml_text import toml_value
 
 SIM_BUILD = cbuild.ROOT / "build" / "sim"
 
@@ -58,15 +59,10 @@ def edits(preset: str | None = None, sets=()) -> dict[str, object]:
 
 
 def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    raise VariantError(f"cannot write {v!r} into the model file")
+    try:
+        return toml_value(v)
+    except TypeError as exc:
+        raise VariantError(f"cannot write {v!r} into the model file") from exc
 
 
 _HEADER = re.compile(r"^\s*\[([A-Za-z0-9_.\-]+)\]\s*(#.*)?$")

@@ -66,7 +66,6 @@ static void show_state(const app_t *app)
     app->port->led(app->port->ctx, 1, app_faults(app) != 0);
 }
 
-
 static void set_enabled(app_t *app, bool on)
 {
     if (on == app->enabled) return;
@@ -207,7 +206,6 @@ static void command_servos(app_t *app)
     const uint16_t speeds[SBUS_SERVOS] = { speed, speed, speed };
     sbus_command(&app->bus, units, speeds);
 }
-
 
 /* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
 #define LED_EVERY_TICKS 10u
