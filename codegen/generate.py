@@ -185,6 +185,7 @@ def params_context(m: config.Model):
         "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
         "park_speed": servo.speed_units(m.park_speed_rpm),
         "working_speed": servo.speed_units(m.working_speed_rpm),
+        "units_per_s_per_speed": float32_literal(servo.units_per_s_per_speed_unit(m)),
         "angle_limits": [servo.unit_range(m, j) for j in range(3)],
         "return_delay": m.servo_return_delay_us // 2,
         "boot_ms": ms(m.servo_boot_time),

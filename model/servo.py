@@ -31,6 +31,13 @@ def speed_units(rpm: float) -> int:
     return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
 
 
+def units_per_s_per_speed_unit(m: Model) -> sp.Expr:
+    """Position units per second that one Moving Speed unit allows: rpm x 6 deg/s per rpm x
+    the model's units per degree."""
+    units, degrees = (sp.nsimplify(v, rational=True) for v in (m.servo_units_max, m.servo_range_deg))
+    return sp.nsimplify(RPM_PER_SPEED_UNIT, rational=True) * 6 * units / degrees
+
+
 def unit_range(m: Model, joint: int) -> tuple[int, int]:
     """The servo positions that lie inside the joint's travel limits (whole units)."""
     lim = m.limits[joint]

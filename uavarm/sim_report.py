@@ -92,6 +92,14 @@ def run_jobs(jobs, workers: int = 1):
         return pool.map(_run_one, jobs, chunksize=1)
 
 
+def _save(fig, path: Path) -> Path:
+    import matplotlib.pyplot as plt
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_run(run: sim.Run, out_dir: Path) -> list[Path]:
     """Error over time and estimated vs true attitude of one run, as PNG files."""
     import matplotlib
@@ -115,11 +123,7 @@ def plot_run(run: sim.Run, out_dir: Path) -> list[Path]:
     ax[1].plot(run.t, tilt, lw=0.6, color="0.4")
     ax[1].set_ylabel("drone tilt, deg")
     ax[1].set_xlabel("time since engage, s")
-    fig.tight_layout()
-    p = out_dir / f"{stem}-error.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    paths.append(p)
+    paths.append(_save(fig, out_dir / f"{stem}-error.png"))
 
     fig, ax = plt.subplots(2, 1, figsize=(10, 6), sharex=True)
     for i, name in enumerate(("roll", "pitch")):
@@ -131,11 +135,7 @@ def plot_run(run: sim.Run, out_dir: Path) -> list[Path]:
     ax[0].set_title(f"{run.scenario}, {run.label}, seed {run.seed}: attitude error RMS {m['att_rms']:.2f} deg, "
                     f"max {m['att_max']:.2f} deg")
     ax[1].set_xlabel("time since engage, s")
-    fig.tight_layout()
-    p = out_dir / f"{stem}-attitude.png"
-    fig.savefig(p, dpi=110)
-    plt.close(fig)
-    paths.append(p)
+    paths.append(_save(fig, out_dir / f"{stem}-attitude.png"))
     return paths
 
 

@@ -3,9 +3,7 @@
 
 #include <string.h>
 
-/* Moving Speed unit -> position units per second: 0.111 rpm x 6 deg/s per rpm x 1023/300
- * units per deg (AX-12A e-manual, joint mode). */
-#define UNITS_PER_S_PER_SPEED_UNIT (0.111f * 6.0f * 1023.0f / 300.0f)
+#include "model_params.h"
 
 void track_reset(track_t *t)
 {
@@ -24,7 +22,7 @@ static bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal, uint16_t
     if (abs32(error) <= TRACK_TOL_UNITS) return true;
     const int32_t left = (int32_t)goal - (int32_t)w->last_position;
     const int32_t moved = ((int32_t)pos - (int32_t)w->last_position) * (left < 0 ? -1 : 1);
-    const float allowed = (float)(speed & 0x3FFu) * UNITS_PER_S_PER_SPEED_UNIT * ((float)dt_us * 1e-6f);
+    const float allowed = (float)(speed & 0x3FFu) * MODEL_UNITS_PER_S_PER_SPEED * ((float)dt_us * 1e-6f);
     const float wanted = (float)abs32(left) < allowed ? (float)abs32(left) : allowed;
     return moved > 0 && (float)moved >= TRACK_MIN_PROGRESS * wanted;
 }
