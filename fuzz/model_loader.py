@@ -11,25 +11,23 @@ Two kinds of input:
     array nested up to 1,500 deep, an inline table or a date, or deleted. Byte mutations of
     a TOML text rarely produce such values; this reaches the validation behind the parser.
 
-The file is loaded with uavarm.model.config.load(). The property:
-the loader either returns a model or raises config.ModelError (naming the file and the
-key); no other exception escapes, whatever the bytes. A model that loads then goes through
-the code generator's park check (codegen check_park), which must pass or raise ModelError
-as well. check_park is a pure function of the model's numbers and costs ~0.3 s of SymPy,
-so its verdict is remembered per model (inputs that differ only in comments or layout
-reuse it).
+The bytes go through uavarm.model.config.parse() (what load() does after reading the
+file). The property: the loader either returns a model or raises config.ModelError (naming
+the file and the key); no other exception escapes, whatever the bytes. A model that loads
+then goes through the code generator's park check (codegen check_park), which must pass or
+raise ModelError as well. check_park is a pure function of the park pose, geometry, limits
+and collision numbers and costs ~0.3 s of SymPy, so its verdict is remembered per value of
+those (PARK_FIELDS, checked at start-up to cover what it reads): edits of the filters, the
+estimator or the servo settings reuse it.
 
 tomllib and the loader are instrumented for coverage; SymPy is not.
 """
 from __future__ import annotations
 
 import copy
-import dataclasses
 import json
 import math
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import atheris
@@ -39,18 +37,37 @@ sys.path.insert(0, str(ROOT))
 
 sys.modules.pop("tomllib", None)   # imported at start-up by site-packages hooks: instrument a fresh copy
 with atheris.instrument_imports(include=["tomllib", "uavarm.model.config"]):
-    import tomllib  # noqa: F401
+    import tomllib
     from uavarm.model import config
 
 from uavarm.codegen import generate  # noqa: E402
 
-_DIR = tempfile.mkdtemp(prefix="uavarm-fuzz-model-")
-_PATH = Path(_DIR) / "manipulator.toml"
+_PATH = Path("fuzz-input.toml")    # names the input in errors; nothing is written
 _PARK: dict = {}
+# The model fields codegen check_park reads (geometry, limits, collision, park pose; path only
+# names the file, always _PATH here). Its verdict is remembered per value of these fields.
+PARK_FIELDS = ("path", "L1", "L2", "L3", "limits", "body_z", "leg_angles", "leg_half_width",
+               "leg_distance", "park_deg")
+
+
+class _ParkFieldsOnly:
+    """A model that lets check_park read PARK_FIELDS only: proves at start-up that the
+    cache key covers everything the check depends on."""
+
+    def __init__(self, model):
+        self._model = model
+
+    def __getattr__(self, name):
+        if name not in PARK_FIELDS:
+            raise AssertionError(f"codegen check_park reads model.{name}: add it to PARK_FIELDS")
+        return getattr(self._model, name)
+
+
+generate.check_park(_ParkFieldsOnly(config.load(config.DEFAULT_MODEL)))
 
 
 def check_park(model: config.Model) -> None:
-    key = dataclasses.replace(model, path=Path("model"), sha256="")
+    key = tuple(getattr(model, name) for name in PARK_FIELDS)
     if key not in _PARK:
         if len(_PARK) > 4096:
             _PARK.clear()
@@ -162,9 +179,9 @@ def edited_model(data: bytes) -> bytes:
 # ------------------------------------------------------------------ the property
 
 def test_one_input(data: bytes) -> None:
-    _PATH.write_bytes(edited_model(data[1:]) if data[:1] == b"\x01" else data)
+    raw = edited_model(data[1:]) if data[:1] == b"\x01" else data
     try:
-        model = config.load(_PATH)
+        model = config.parse(raw, _PATH)
     except config.ModelError:
         return
     try:
@@ -175,11 +192,7 @@ def test_one_input(data: bytes) -> None:
 
 def main() -> None:
     atheris.Setup(sys.argv, test_one_input)
-    try:
-        atheris.Fuzz()
-    finally:
-        _PATH.unlink(missing_ok=True)
-        os.rmdir(_DIR)
+    atheris.Fuzz()
 
 
 if __name__ == "__main__":

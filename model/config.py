@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from fractions import Fraction
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,7 +19,8 @@ JOINTS = ("theta1", "theta2", "theta3")
 ACCEL_RANGES_G = {2: 0, 4: 1, 8: 2, 16: 3}             # AFS_SEL
 GYRO_RANGES_DPS = {250: 0, 500: 1, 1000: 2, 2000: 3}   # FS_SEL
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
-SPEED_RPM_MAX = 1023 * 0.111        # AX-12A Moving Speed register limit
+RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX12_FACTS.md)
+SPEED_RPM_MAX = 1023 * RPM_PER_SPEED_UNIT        # AX-12A Moving Speed register limit
 # Every length of the model (mm) is at most 10 m: the generated code is float32, and the
 # code generator's exact SymPy checks take minutes on lengths like 1e300. A link is 0 or at
 # least 1 um long, for the same reason at the other end (1e-300).
@@ -197,6 +199,11 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         raw = path.read_bytes()
     except OSError as exc:
         raise ModelError(f"{path}: cannot read the model file: {exc.strerror}") from None
+    return parse(raw, path)
+
+
+def parse(raw: bytes, path: Path) -> Model:
+    """The model in raw (the bytes of a model file); path names it in errors and in the model."""
     try:
         data = tomllib.loads(raw.decode("utf-8"))
     except RecursionError:
@@ -260,8 +267,8 @@ def load(path: str | Path = DEFAULT_MODEL) -> Model:
         servo_range_deg=range_deg,
         servos=tuple(servos),
         servo_return_delay_us=return_delay,
-        park_speed_rpm=r.number("servo.park_speed_rpm", lo=0.111, hi=SPEED_RPM_MAX),
-        working_speed_rpm=r.number("servo.working_speed_rpm", lo=0.111, hi=SPEED_RPM_MAX),
+        park_speed_rpm=r.number("servo.park_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
+        working_speed_rpm=r.number("servo.working_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
         park_deg=park,
         link_silence_timeout=r.number("link.silence_timeout", lo=2 / sample_rate, hi=3600.0),
@@ -355,12 +362,14 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
 
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:
-    """Every joint limit must map inside the servo's 0..units_max range."""
-    from . import servo   # servo builds on Model; imported here to avoid an import cycle
-    for j, (name, limit) in enumerate(zip(JOINTS, model.limits)):
+    """Every joint limit must map inside the servo's 0..units_max range (exact rationals: a
+    limit that maps exactly onto 0 or units_max is accepted; servo.joint_to_units is the same
+    map in SymPy, which costs milliseconds per call)."""
+    units_per_deg = Fraction(model.servo_units_max) / Fraction(model.servo_range_deg)
+    for s, name, limit in zip(model.servos, JOINTS, model.limits):
         for deg in (limit.min_deg, limit.max_deg):
-            units = float(servo.joint_to_units(model, j, math.radians(deg)))
+            units = s.zero + s.direction * Fraction(deg) * units_per_deg
             if not 0 <= units <= model.servo_units_max:
                 raise r.fail(f"joints.{name}",
-                             f"limit {deg} deg maps to servo position {units:.1f}, outside "
+                             f"limit {deg} deg maps to servo position {float(units):.1f}, outside "
                              f"0..{model.servo_units_max} (check servo.{name}.zero)")

@@ -5,7 +5,7 @@ import math
 
 import sympy as sp
 
-from .config import Model
+from .config import RPM_PER_SPEED_UNIT, Model
 
 
 def units_per_rad(m: Model) -> sp.Expr:
@@ -21,9 +21,6 @@ def joint_to_units(m: Model, joint: int, angle) -> sp.Expr:
 def units_to_joint(m: Model, joint: int, units) -> sp.Expr:
     s = m.servos[joint]
     return s.direction * (units - s.zero) / units_per_rad(m)
-
-
-RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX12_FACTS.md)
 
 
 def speed_units(rpm: float) -> int:
