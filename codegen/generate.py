@@ -17,7 +17,7 @@ import sympy as sp
 
 from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo
 from . import approx
-from .printer import c, cse_lines, float32_literal, op_count
+from .printer import c, cse_lines, float32_literal, op_count, temp_line
 
 ROOT = Path(__file__).resolve().parents[1]
 TEMPLATES = ROOT / "templates"
@@ -67,8 +67,8 @@ def kinematics_context(m: config.Model):
     q = kinematics.JOINT_SYMBOLS
     j3, ee = kinematics.fk_points(m)
     geo = kinematics.fk_geometry(m)
-    checks = [("limits_ok", kinematics.joint_limits_ok(m, q)),
-              ("body_ok", collision.body_clear(m, geo)),
+    limits = kinematics.joint_limits_ok(m, q)
+    checks = [("body_ok", collision.body_clear(m, geo)),
               ("legs_ok", collision.legs_clear(m, geo))]
 
     ikm = kinematics.ik(m)
@@ -82,14 +82,63 @@ def kinematics_context(m: config.Model):
                    (f"legs_ok[{i}]", collision.legs_clear(m, cand.geometry))]
     ik_exprs = _bind([e for _, e in ik_out], t, ["x", "y", "z"])
     temps, assigns = cse_lines(list(zip([l for l, _ in ik_out], ik_exprs)))
+    checks_of = [[kinematics.joint_limits_ok(m, cand.q), collision.body_clear(m, cand.geometry),
+                  collision.legs_clear(m, cand.geometry)] for cand in ikm.candidates]
     return {
         "fk_ee": _function([(f"ee[{i}]", ee[i]) for i in range(3)], q, Q),
         "fk_joint3": _function([(f"j3[{i}]", j3[i]) for i in range(3)], q, Q),
+        "check_limits": _function([("const bool limits_ok", limits)], q, Q),
         "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q),
         "ik": {"lines": temps + assigns, "ops": op_count(ik_exprs)},
+        "nearest": _ik_nearest(ikm, checks_of, t),
         "dh": kinematics.dh_rows(m),
         "target_bound": float32_literal(2 * (m.L1 + m.L2 + m.L3)),
         "limits": [(float32_literal(l.min_rad), float32_literal(l.max_rad)) for l in m.limits],
+    }
+
+
+def _ik_nearest(ikm, checks_of, target_symbols):
+    """kin_ik_nearest: the candidates' angles up front, then each candidate's checks on their
+    own, one check after the other, so that the C can test the candidates nearest first and
+    stop at the first valid one. One CSE over everything names the shared terms; each
+    candidate's block recomputes the terms it needs beyond those of the angles."""
+    angles = [ikm.disc >= 0] + [a for cand in ikm.candidates for a in cand.q]
+    checks = [c for cand in checks_of for c in cand]
+    exprs = _bind(angles + checks, target_symbols, ["x", "y", "z"])
+    replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("t"), order="canonical")
+    defined = dict(replacements)
+
+    def closure(roots, have):
+        """Temporaries the expressions roots need beyond have, in definition order."""
+        need, todo = set(), [s for e in roots for s in e.free_symbols if s in defined]
+        while todo:
+            sym = todo.pop()
+            if sym in need or sym in have:
+                continue
+            need.add(sym)
+            todo += [s for s in defined[sym].free_symbols if s in defined]
+        return [(sym, e) for sym, e in replacements if sym in need]
+
+    def lines(temps):
+        return [temp_line(sym, e) for sym, e in temps]
+
+    n_angles = len(angles)
+    upfront = closure(reduced[:n_angles], set())
+    have_upfront = {sym for sym, _ in upfront}
+    candidates = []
+    for i in range(len(ikm.candidates)):
+        have, steps = set(have_upfront), []
+        for k, why in enumerate(("KIN_JOINT_LIMIT", "KIN_BODY", "KIN_LEG")):   # kin_check_joints' order
+            cond = reduced[n_angles + 3 * i + k]
+            temps = closure([cond], have)
+            have |= {sym for sym, _ in temps}
+            steps.append({"lines": lines(temps), "ok": c(cond), "why": why})
+        candidates.append(steps)
+    return {
+        "lines": lines(upfront),
+        "reachable": c(reduced[0]),
+        "q": [[c(reduced[1 + 3 * i + j]) for j in range(3)] for i in range(len(ikm.candidates))],
+        "candidates": candidates,
     }
 
 

@@ -114,6 +114,12 @@ def c(expr) -> str:
     return PRINTER.doprint(expr)
 
 
+def temp_line(sym, expr) -> str:
+    """The C declaration of a CSE temporary: `const bool` for relations, else `const float`."""
+    ctype = "bool" if isinstance(expr, (sp.logic.boolalg.Boolean, sp.core.relational.Relational)) else "float"
+    return f"const {ctype} {sym} = {c(expr)};"
+
+
 def cse_lines(outputs, prefix="t"):
     """Run CSE over [(lvalue, expr)] and return (temporaries, assignments) as C text.
 
@@ -122,10 +128,7 @@ def cse_lines(outputs, prefix="t"):
     names = [lhs for lhs, _ in outputs]
     exprs = [sp.sympify(e) for _, e in outputs]
     replacements, reduced = sp.cse(exprs, symbols=sp.numbered_symbols(prefix), order="canonical")
-    temps = []
-    for sym, expr in replacements:
-        ctype = "bool" if isinstance(expr, (sp.logic.boolalg.Boolean, sp.core.relational.Relational)) else "float"
-        temps.append(f"const {ctype} {sym} = {c(expr)};")
+    temps = [temp_line(sym, expr) for sym, expr in replacements]
     assigns = [f"{lhs} = {c(expr)};" for lhs, expr in zip(names, reduced)]
     return temps, assigns
 

@@ -161,3 +161,44 @@ def test_nan_current_joints_still_select(model, gen):
     p = shell_targets(model, 200, np.random.default_rng(6))
     _, st, sel = run_ik(gen, p, q_now=(float("nan"), 0.0, 0.0))
     assert np.array_equal(sel >= 0, (st == OK).any(axis=1))
+
+
+def test_nearest_first_solver_selects_as_kin_ik(model, gen):
+    """kin_ik_nearest (what the firmware runs each tick: candidates checked nearest first,
+    stopping at the first valid one) gives bit for bit kin_ik's selection, or kin_ik's
+    first refusal reason when no candidate is valid."""
+    ffi, lib = gen
+    rng = np.random.default_rng(11)
+    reach = model.L1 + model.L2 + model.L3
+    targets = np.concatenate([
+        shell_targets(model, 6000, rng),
+        rng.uniform(-reach - 20.0, reach + 20.0, size=(6000, 3)).astype(np.float32),   # many refused
+        [(0.0, 0.0, -130.0), (0.0, 0.0, 0.0), (float("nan"), 0.0, -100.0), (1e30, 0.0, 0.0)],
+    ])
+    lo = np.array([l.min_rad for l in model.limits])
+    hi = np.array([l.max_rad for l in model.limits])
+    q_nows = np.concatenate([rng.uniform(lo, hi, size=(len(targets) - 4, 3)),
+                             [(float("nan"), 0.0, 0.0), (float("inf"), 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)]])
+    out, p, qn, q_out = ffi.new("kin_ik_t *"), ffi.new("float[3]"), ffi.new("float[3]"), ffi.new("float[3]")
+    selected = 0
+    for target, q_now in zip(targets, q_nows):
+        # and again from each valid candidate, and from a point between the first two
+        p[0:3] = [float(v) for v in target]
+        qn[0:3] = [float(v) for v in q_now]
+        lib.kin_ik(p, qn, out)
+        starts = [q_now] + [list(out.q[i]) for i in range(4) if out.status[i] == OK]
+        starts.append([(out.q[0][j] + out.q[1][j]) / 2 for j in range(3)])
+        for start in starts:
+            qn[0:3] = [float(v) for v in start]
+            sel = lib.kin_ik(p, qn, out)
+            q_out[0:3] = [-7.0, -7.0, -7.0]
+            status = lib.kin_ik_nearest(p, qn, q_out)
+            if sel >= 0:
+                assert status == OK
+                assert np.array_equal(np.array(list(q_out), np.float32), np.array(list(out.q[sel]), np.float32))
+                selected += 1
+            else:
+                refused = [s for s in out.status if s != UNREACHABLE]
+                assert status == (refused[0] if refused else UNREACHABLE), (target, list(out.status))
+                assert list(q_out) == [-7.0, -7.0, -7.0]
+    assert selected > 5000

@@ -70,7 +70,7 @@ bool stab_link_fresh(const stab_t *s, uint32_t now_us);
 void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* Joints that put the end effector on target_level (level frame, mm) at the current
  * attitude predicted lead_time ahead: the valid IK candidate nearest q_now. Writes q_out only
- * when it returns KIN_OK; otherwise returns why the best candidate was refused. */
+ * when it returns KIN_OK; otherwise returns KIN_UNREACHABLE or why candidate 0 was refused. */
 kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3]);
 /* The same for a level base (no tilt): is target_level reachable at all? */
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3]);

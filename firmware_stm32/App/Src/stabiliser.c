@@ -167,34 +167,14 @@ void stab_attitude(const stab_t *s, float *roll, float *pitch)
     *pitch = fm_atan2f(-s->up[0], sqrtf(s->up[1] * s->up[1] + s->up[2] * s->up[2]));
 }
 
-/* The first refusal reason of the candidates, when none is valid: unreachable beats the
- * collision reasons only if every candidate is unreachable. */
-static kin_status_t solve_base(const float p_base[3], const float q_now[3], float q_out[3])
-{
-    kin_ik_t ik;
-    int k = kin_ik(p_base, q_now, &ik);
-    if (k >= 0) {
-        memcpy(q_out, ik.q[k], 3 * sizeof(float));
-        return KIN_OK;
-    }
-    kin_status_t why = KIN_UNREACHABLE;
-    for (int i = 0; i < KIN_CANDIDATES; ++i) {
-        if (ik.status[i] != KIN_UNREACHABLE) {
-            why = (kin_status_t)ik.status[i];
-            break;
-        }
-    }
-    return why;
-}
-
 kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3])
 {
     float p_base[3];
     est_command_point(s->up, s->rate, target_level, p_base);
-    return solve_base(p_base, q_now, q_out);
+    return kin_ik_nearest(p_base, q_now, q_out);
 }
 
 kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3])
 {
-    return solve_base(target_level, q_now, q_out);
+    return kin_ik_nearest(target_level, q_now, q_out);
 }
