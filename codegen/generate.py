@@ -81,7 +81,7 @@ def kinematics_context(m: config.Model):
                    (f"body_ok[{i}]", collision.body_clear(m, cand.geometry)),
                    (f"legs_ok[{i}]", collision.legs_clear(m, cand.geometry))]
     ik_exprs = _bind([e for _, e in ik_out], t, ["x", "y", "z"])
-    temps, assigns = cse_lines(list(zip([l for l, _ in ik_out], ik_exprs)))
+    temps, assigns = _finite_atan2(cse_lines(list(zip([l for l, _ in ik_out], ik_exprs))))
     checks_of = [[kinematics.joint_limits_ok(m, cand.q), collision.body_clear(m, cand.geometry),
                   collision.legs_clear(m, cand.geometry)] for cand in ikm.candidates]
     return {
@@ -95,6 +95,12 @@ def kinematics_context(m: config.Model):
         "target_bound": float32_literal(2 * (m.L1 + m.L2 + m.L3)),
         "limits": [(float32_literal(l.min_rad), float32_literal(l.max_rad)) for l in m.limits],
     }
+
+
+def _finite_atan2(blocks):
+    """The IK's C lines with fm_atan2f_finite: its target is refused unless finite and inside
+    the reach box, so every atan2 argument is finite."""
+    return tuple([line.replace("fm_atan2f(", "fm_atan2f_finite(") for line in block] for block in blocks)
 
 
 def _ik_nearest(ikm, checks_of, target_symbols):
@@ -135,7 +141,7 @@ def _ik_nearest(ikm, checks_of, target_symbols):
             steps.append({"lines": lines(temps), "ok": c(cond), "why": why})
         candidates.append(steps)
     return {
-        "lines": lines(upfront),
+        "lines": _finite_atan2([lines(upfront)])[0],
         "reachable": c(reduced[0]),
         "q": [[c(reduced[1 + 3 * i + j]) for j in range(3)] for i in range(len(ikm.candidates))],
         "candidates": candidates,
