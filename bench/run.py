@@ -51,7 +51,7 @@ def main() -> int:
     m4 = target.m4count()
     gen_dir = generated.GENERATED
     gen = m4.build([str(s) for s in generated.sources()],
-                   ["kin_fk_ee", "kin_ik", "filt_accel_step", "filt_gyro_step"],
+                   ["kin_fk_ee", "kin_ik", "kin_ik_nearest", "filt_accel_step", "filt_gyro_step"],
                    cflags=target.M4_CFLAGS + [f"-I{gen_dir}"])
     ref = m4.build([str(BENCH / "reference.c")], ["ref_fk", "ref_ik", "ref_biquad_step"],
                    cflags=target.M4_CFLAGS + target.reference_defines(m))
@@ -64,6 +64,9 @@ def main() -> int:
          measure(ref, "ref_fk", [[("float", q), ("float", 3)] for q in qs], "void")),
         ("IK: 4 candidates + checks + select",
          measure(gen, "kin_ik", [[("float", p), zero_q, ("uint32", 14)] for p in targets], "int"),
+         measure(ref, "ref_ik", [[("float", p), zero_q, ("float", 3)] for p in targets], "int")),
+        ("IK as the firmware runs it: nearest candidate first, stop at the first valid",
+         measure(gen, "kin_ik_nearest", [[("float", p), zero_q, ("float", 3)] for p in targets], "int"),
          measure(ref, "ref_ik", [[("float", p), zero_q, ("float", 3)] for p in targets], "int")),
         ("accel filter step (1 axis)",
          measure(gen, "filt_accel_step", [[("float", 2), x] for x in samples], "float"),
