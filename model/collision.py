@@ -24,6 +24,7 @@ class Geometry:
     j3_rho: sp.Expr          # times j3_scale
     j3_z: sp.Expr            # times j3_scale
     j3_scale: sp.Expr
+    q1: sp.Expr | None = None  # joint 1's angle where known (joint space): no trigonometry for the legs
 
 
 def body_clear(m: Model, g: Geometry) -> sp.Boolean:
@@ -42,11 +43,27 @@ def leg_planes(m: Model) -> tuple[sp.Expr, ...]:
 
 def near_leg(m: Model, g: Geometry) -> sp.Boolean:
     """The arm's plane is within leg_half_width of a leg: |cos(theta1 - a)| >= cos(hw)."""
-    cos_hw = sp.cos(sp.pi * sp.nsimplify(m.leg_half_width, rational=True) / 180).evalf(30)
+    hw = sp.pi * sp.nsimplify(m.leg_half_width, rational=True) / 180
+    if g.q1 is not None:
+        return _near_leg_angle(m, g.q1, hw)
+    cos_hw = sp.cos(hw).evalf(30)
     near = []
     for a in leg_planes(m):
         c, s = sp.cos(a).evalf(30), sp.sin(a).evalf(30)
         near.append(sp.Abs(g.cos_q1 * c + g.sin_q1 * s) >= cos_hw * g.angle_scale)
+    return sp.Or(*near)
+
+
+def _near_leg_angle(m: Model, q1: sp.Expr, hw: sp.Expr) -> sp.Boolean:
+    """near_leg from the angle: for hw <= 90 deg, |cos(q1 - a)| >= cos(hw) exactly when q1 is
+    within hw of a + k pi. For |q1| <= 180 deg (the joint limits' range) the k with a + k pi
+    within hw of [-pi, pi] are enough."""
+    near = []
+    for a in leg_planes(m):
+        for k in (-1, 0, 1):
+            centre = a + k * sp.pi
+            if -sp.pi - hw <= centre <= sp.pi + hw:
+                near.append(sp.Abs(q1 - centre.evalf(30)) <= hw.evalf(30))
     return sp.Or(*near)
 
 

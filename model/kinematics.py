@@ -138,5 +138,5 @@ def fk_geometry(m: Model) -> collision.Geometry:
     return collision.Geometry(
         cos_q1=sp.cos(q1), sin_q1=sp.sin(q1), angle_scale=sp.Integer(1),
         ee_rho=sp.Abs(in_plane(ee)), ee_z=ee[2],
-        j3_rho=sp.Abs(in_plane(j3)), j3_z=j3[2], j3_scale=sp.Integer(1),
+        j3_rho=sp.Abs(in_plane(j3)), j3_z=j3[2], j3_scale=sp.Integer(1), q1=q1,
     )
