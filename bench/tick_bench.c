@@ -20,7 +20,8 @@ static uint32_t now;
 static uint8_t imu_regs[128];
 static char link_in[256];
 static size_t link_len, link_pos;
-static uint8_t reply[DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN];
+static uint8_t replies[SBUS_SERVOS][DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN];   /* one per servo */
+static const uint8_t *reply;
 static size_t reply_len, reply_pos;
 static app_t app;
 
@@ -40,19 +41,32 @@ static size_t link_read(void *ctx, uint8_t *buf, size_t cap)
     return take(link_in, link_len, &link_pos, buf, cap);
 }
 static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (void)buf; (void)n; return true; }
-/* Every READ is answered at once with a status packet of the requested servo. */
+/* The status packet each servo answers a READ with (position 512), built once: composing
+ * it is the servo's work, not the firmware's. */
+static void build_replies(void)
+{
+    static const uint8_t ids[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        uint8_t *r = replies[i];
+        r[0] = r[1] = 0xFF;
+        r[2] = ids[i];
+        r[3] = SBUS_STATUS_LEN + 2;
+        r[4] = 0;
+        memset(r + 5, 0, SBUS_STATUS_LEN);
+        r[6] = 0x02;
+        r[sizeof replies[i] - 1] = dxl_checksum(r + 2, sizeof replies[i] - 3);
+    }
+}
+
+/* Every READ is answered at once with the status packet of the requested servo. */
 static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
 {
     (void)ctx;
     if (n == 8 && buf[4] == DXL_INST_READ) {
-        reply[0] = reply[1] = 0xFF;
-        reply[2] = buf[2];
-        reply[3] = SBUS_STATUS_LEN + 2;
-        reply[4] = 0;
-        memset(reply + 5, 0, SBUS_STATUS_LEN);
-        reply[6] = 0x02;   /* position 512 */
-        reply[sizeof reply - 1] = dxl_checksum(reply + 2, sizeof reply - 3);
-        reply_len = sizeof reply;
+        for (int i = 0; i < SBUS_SERVOS; ++i) {
+            if (replies[i][2] == buf[2]) reply = replies[i];
+        }
+        reply_len = sizeof replies[0];
         reply_pos = 0;
     }
     return true;
@@ -95,6 +109,7 @@ static int setup(void)
     const msg_engage_t engage = { 1 };
     const msg_set_position_t set = { 60.0f, 20.0f, -120.0f };
     imu_regs[MPU_REG_WHO_AM_I] = MPU_WHO_AM_I;
+    build_replies();
     app_init(&app, &PORT);
     frame(payload, msg_enable_pack(&enable, payload, sizeof payload));
     frame(payload, msg_set_position_pack(&set, payload, sizeof payload));
