@@ -156,27 +156,27 @@ static void imu_stale_tick(app_t *app)
     if (app->imu_stale == APP_IMU_STALE_TICKS) app->imu_retry_us = now_us(app);
 }
 
-static void sample_imu(app_t *app)
+/* A usable sample in accel and gyro (g, rad/s, the IMU's axes)? */
+static bool sample_imu(app_t *app, float accel[3], float gyro[3])
 {
     mpu_raw_t raw;
-    float accel[3], gyro[3];
     /* set the chip up again if it is gone or stopped sampling (asleep after a brown-out) */
     if (!imu_usable(app) && now_us(app) - app->imu_retry_us >= APP_IMU_RETRY_MS * 1000u) try_imu(app);
-    if (!app->imu_ok) return;
+    if (!app->imu_ok) return false;
     if (!mpu_read(app->port, MODEL_MPU_ADDRESS, &raw)) {
         app->imu_errors++;
         imu_stale_tick(app);   /* one I2C glitch is no fault; a chip gone is, in a few ticks */
-        return;
+        return false;
     }
     app->imu_saturated = mpu_saturated(&raw);
     if (!raw.fresh || app->imu_saturated) {
         imu_stale_tick(app);   /* no new sample, or one whose true value is unknown */
-        return;
+        return false;
     }
     app->imu_stale = 0;
     app->imu_samples_used++;
     mpu_scale(&raw, accel, gyro);
-    stab_sample(&app->stab, accel, gyro, now_us(app), app->engaged);
+    return true;
 }
 
 /* The joints to command this tick and their speed. */
@@ -212,13 +212,20 @@ static void command_servos(app_t *app)
 
 static void tick(app_t *app)
 {
-    sample_imu(app);
-    track_update(&app->track, &app->bus, now_us(app));
-    if (app->engaged && (!imu_usable(app) || track_fault(&app->track))) {
+    float accel[3], gyro[3];
+    const bool sampled = sample_imu(app, accel, gyro);
+    const uint32_t now = now_us(app);   /* after the IMU transfer: the sample's time */
+    if (sampled) stab_sample(&app->stab, accel, gyro, now, app->engaged);
+    track_update(&app->track, &app->bus, now);
+    const bool usable = imu_usable(app), tracking = track_fault(&app->track);
+    if (app->engaged && (!usable || tracking)) {
         app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
     }
     if (app->enabled) command_servos(app);
-    app->faults_since_heartbeat |= app_faults(app) & APP_FAULTS_HELD;
+    /* the held bits of app_faults(), which is only needed whole at heartbeats and LEDs */
+    if (!usable) app->faults_since_heartbeat |= MSG_FAULT_IMU;
+    if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
+    if (tracking) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
     if (app->ticks_run % LED_EVERY_TICKS == 0u) show_state(app);
 }
 
