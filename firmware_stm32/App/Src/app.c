@@ -156,26 +156,24 @@ static void imu_stale_tick(app_t *app)
     if (app->imu_stale == APP_IMU_STALE_TICKS) app->imu_retry_us = now_us(app);
 }
 
-/* A usable sample in accel and gyro (g, rad/s, the IMU's axes)? */
-static bool sample_imu(app_t *app, float accel[3], float gyro[3])
+/* A usable sample in *out? */
+static bool sample_imu(app_t *app, mpu_sample_t *out)
 {
-    mpu_raw_t raw;
     /* set the chip up again if it is gone or stopped sampling (asleep after a brown-out) */
     if (!imu_usable(app) && now_us(app) - app->imu_retry_us >= APP_IMU_RETRY_MS * 1000u) try_imu(app);
     if (!app->imu_ok) return false;
-    if (!mpu_read(app->port, MODEL_MPU_ADDRESS, &raw)) {
+    if (!mpu_sample(app->port, MODEL_MPU_ADDRESS, out)) {
         app->imu_errors++;
         imu_stale_tick(app);   /* one I2C glitch is no fault; a chip gone is, in a few ticks */
         return false;
     }
-    app->imu_saturated = mpu_saturated(&raw);
-    if (!raw.fresh || app->imu_saturated) {
+    app->imu_saturated = out->saturated;
+    if (!out->fresh || out->saturated) {
         imu_stale_tick(app);   /* no new sample, or one whose true value is unknown */
         return false;
     }
     app->imu_stale = 0;
     app->imu_samples_used++;
-    mpu_scale(&raw, accel, gyro);
     return true;
 }
 
@@ -212,10 +210,10 @@ static void command_servos(app_t *app)
 
 static void tick(app_t *app)
 {
-    float accel[3], gyro[3];
-    const bool sampled = sample_imu(app, accel, gyro);
+    mpu_sample_t imu;
+    const bool sampled = sample_imu(app, &imu);
     const uint32_t now = now_us(app);   /* after the IMU transfer: the sample's time */
-    if (sampled) stab_sample(&app->stab, accel, gyro, now, app->engaged);
+    if (sampled) stab_sample(&app->stab, imu.accel_g, imu.gyro_rad_s, now, app->engaged);
     track_update(&app->track, &app->bus, now);
     const bool usable = imu_usable(app), tracking = track_fault(&app->track);
     if (app->engaged && (!usable || tracking)) {
