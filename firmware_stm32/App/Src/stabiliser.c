@@ -27,7 +27,7 @@ static void remember(stab_t *s, uint32_t now_us)
 {
     memcpy(s->hist_q[s->hist_next], s->quat.q, sizeof s->quat.q);
     s->hist_us[s->hist_next] = now_us;
-    s->hist_next = (uint8_t)((s->hist_next + 1u) % MODEL_LINK_HISTORY);
+    s->hist_next = (uint8_t)(s->hist_next + 1u < MODEL_LINK_HISTORY ? s->hist_next + 1u : 0u);   /* (no division) */
     if (s->hist_len < MODEL_LINK_HISTORY) s->hist_len++;
 }
 #endif
@@ -49,7 +49,7 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
         est_quat_reset(&s->quat, accel_g);
         s->started = true;
     }
-    for (int i = 0; i < 3; ++i) acc[i] = filt_accel_step(&s->accel_filter[i], accel_g[i]);
+    filt_accel_step3(s->accel_filter, accel_g, acc);
 #if MODEL_ESTIMATOR_QUATERNION
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
     if (stab_link_fresh(s, now_us)) {
