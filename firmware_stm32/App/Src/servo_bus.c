@@ -154,6 +154,7 @@ static size_t direct_bytes(sbus_t *bus, const uint8_t *b, size_t n, bool *done)
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
     unsigned len = bus->direct_len, sum = bus->direct_sum;
     uint8_t *dst = bus->direct;
+    const uint8_t head[4] = { 0xFF, 0xFF, bus->expect_id, (uint8_t)(bus->expect_params + 2u) };
     size_t i = 0;
     *done = false;
     while (i < n) {
@@ -177,14 +178,7 @@ static size_t direct_bytes(sbus_t *bus, const uint8_t *b, size_t n, bool *done)
             break;
         }
         const uint8_t byte = b[i];
-        bool fits;
-        switch (len) {
-        case 0: case 1: fits = byte == 0xFF; break;
-        case 2: fits = byte == bus->expect_id; break;
-        case 3: fits = byte == bus->expect_params + 2u; break;
-        default: fits = byte <= 0x7Fu; break;
-        }
-        if (!fits) break;
+        if (len < 4u ? byte != head[len] : byte > 0x7Fu) break;   /* (the error byte: bit 7 clear) */
         if (len >= 2u) sum += byte;
         dst[len++] = byte;
         ++i;
