@@ -67,9 +67,11 @@ def kinematics_context(m: config.Model):
     q = kinematics.JOINT_SYMBOLS
     j3, ee = kinematics.fk_points(m)
     geo = kinematics.fk_geometry(m)
+    # legs_clear, split: joint 1's sine and cosine are computed (check_heading) only for a
+    # pose outside the leg distance, the one case where they decide
     checks = [("limits_ok", kinematics.joint_limits_ok(m, q)),
               ("body_ok", collision.body_clear(m, geo)),
-              ("legs_ok", collision.legs_clear(m, geo))]
+              ("legs_inside", collision.inside_leg_distance(m, geo))]
 
     ikm = kinematics.ik(m)
     t = kinematics.TARGET_SYMBOLS
@@ -86,6 +88,8 @@ def kinematics_context(m: config.Model):
         "fk_ee": _function([(f"ee[{i}]", ee[i]) for i in range(3)], q, Q),
         "fk_joint3": _function([(f"j3[{i}]", j3[i]) for i in range(3)], q, Q),
         "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q),
+        "check_heading": _function([("const bool away_from_legs", sp.Not(collision.near_leg(m, geo)))], q, Q,
+                                   prefix="h"),
         "ik": {"lines": temps + assigns, "ops": op_count(ik_exprs)},
         "dh": kinematics.dh_rows(m),
         "target_bound": float32_literal(2 * (m.L1 + m.L2 + m.L3)),

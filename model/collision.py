@@ -50,7 +50,13 @@ def near_leg(m: Model, g: Geometry) -> sp.Boolean:
     return sp.Or(*near)
 
 
+def inside_leg_distance(m: Model, g: Geometry) -> sp.Boolean:
+    """End effector and joint 3 inside the leg distance: clear of the legs whichever way
+    joint 1 turns."""
+    d = sp.Float(m.leg_distance, 30)
+    return sp.And(g.ee_rho < d, g.j3_rho < d * g.j3_scale)
+
+
 def legs_clear(m: Model, g: Geometry) -> sp.Boolean:
     """Near a leg, both end effector and joint 3 must stay inside the leg distance."""
-    d = sp.Float(m.leg_distance, 30)
-    return sp.Or(sp.Not(near_leg(m, g)), sp.And(g.ee_rho < d, g.j3_rho < d * g.j3_scale))
+    return sp.Or(sp.Not(near_leg(m, g)), inside_leg_distance(m, g))
