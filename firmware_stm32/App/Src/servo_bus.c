@@ -44,7 +44,7 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
     bus->port = port;
     bus->byte_us = (10u * 1000000u + baud - 1u) / baud;   /* start + 8 data + stop bits */
     for (int i = 0; i < SBUS_SERVOS; ++i) {
-        bus->servo[i].id = ids[i];
+        bus->servo[i].id = bus->ids[i] = ids[i];
         (void)dxl_build_read(bus->read_pkt[i], sizeof bus->read_pkt[i], ids[i], SBUS_STATUS_ADDR, SBUS_STATUS_LEN);
     }
     (void)dxl_parser_init(&bus->parser, bus->rx_buf, sizeof bus->rx_buf);
@@ -376,13 +376,11 @@ static void run(sbus_t *bus)
             s->failed = true;
         }
         bus->read_attempt = 0;
-        bus->read_index = (uint8_t)((bus->read_index + 1u) % SBUS_SERVOS);
+        bus->read_index = (uint8_t)(bus->read_index + 1u < SBUS_SERVOS ? bus->read_index + 1u : 0u);
         return;
     }
     if (bus->command_pending) {
-        uint8_t ids[SBUS_SERVOS];
-        for (int i = 0; i < SBUS_SERVOS; ++i) ids[i] = bus->servo[i].id;
-        size_t len = dxl_build_sync_goal_speed(bus->tx, sizeof bus->tx, SBUS_SERVOS, ids, bus->goal, bus->speed);
+        size_t len = dxl_build_sync_goal_speed(bus->tx, sizeof bus->tx, SBUS_SERVOS, bus->ids, bus->goal, bus->speed);
         if (start(bus, len, REPLY_NONE, 0, 0)) {
             bus->command_pending = false;
             bus->read_due = true;
