@@ -88,7 +88,7 @@ bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
     bool saturated = false;
     for (int i = 0; i < 3; ++i) {
         const int16_t a = be16(b + 2 * i), g = be16(b + 8 + 2 * i);
-        saturated |= full_scale(a) | full_scale(g);
+        if (full_scale(a) || full_scale(g)) saturated = true;
         out->accel_g[i] = (float)a * MODEL_ACCEL_G_PER_LSB;
         out->gyro_rad_s[i] = (float)g * MODEL_GYRO_RAD_PER_LSB;
     }

@@ -37,18 +37,23 @@ bool stab_link_fresh(const stab_t *s, uint32_t now_us)
     return MODEL_DRONE_ATTITUDE && s->link_valid && now_us - s->link_accepted_us < MODEL_LINK_TIMEOUT_US;
 }
 
+/* The first sample after a reset: filters and attitude at rest on it. Not inlined: the
+ * per-sample path then needs fewer registers saved. */
+static __attribute__((noinline)) void start(stab_t *s, const float accel_g[3], const float gyro_rad_s[3])
+{
+    for (int i = 0; i < 3; ++i) {
+        filt_accel_reset(&s->accel_filter[i], accel_g[i]);
+        filt_gyro_reset(&s->gyro_filter[i], gyro_rad_s[i]);
+    }
+    est_reset(&s->attitude, accel_g);
+    est_quat_reset(&s->quat, accel_g);
+    s->started = true;
+}
+
 void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], uint32_t now_us, bool engaged)
 {
     float acc[3];
-    if (!s->started) {
-        for (int i = 0; i < 3; ++i) {
-            filt_accel_reset(&s->accel_filter[i], accel_g[i]);
-            filt_gyro_reset(&s->gyro_filter[i], gyro_rad_s[i]);
-        }
-        est_reset(&s->attitude, accel_g);
-        est_quat_reset(&s->quat, accel_g);
-        s->started = true;
-    }
+    if (!s->started) start(s, accel_g, gyro_rad_s);
     filt_accel_step3(s->accel_filter, accel_g, acc);
 #if MODEL_ESTIMATOR_QUATERNION
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
