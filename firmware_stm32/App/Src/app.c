@@ -9,11 +9,6 @@
 #include "model_params.h"
 #include "servo_map.h"
 
-/* Fault bits the heartbeat reports if they stood at any tick since the previous one: they
- * can come and go between two heartbeats (a saturated sample, a short IMU dropout that
- * parked the arm, a servo that stalled for a moment). */
-#define APP_FAULTS_HELD (MSG_FAULT_IMU | MSG_FAULT_IMU_SATURATED | MSG_FAULT_SERVO_TRACKING)
-
 static const float PARK[3] = { MODEL_PARK_Q1, MODEL_PARK_Q2, MODEL_PARK_Q3 };
 
 static uint32_t now_us(const app_t *app)
@@ -205,6 +200,17 @@ static void command_servos(app_t *app)
     sbus_command(&app->bus, units, speeds);
 }
 
+/* Fault bits the heartbeat reports if they stood at any tick since the previous one: they
+ * can come and go between two heartbeats (a saturated sample, a short IMU dropout that
+ * parked the arm, a servo that stalled for a moment). app_faults()'s imu, imu_saturated and
+ * servo_tracking bits, on their own: the whole word is only needed at heartbeats and LEDs. */
+static void hold_faults(app_t *app, bool imu_usable_now, bool tracking_fault)
+{
+    if (!imu_usable_now) app->faults_since_heartbeat |= MSG_FAULT_IMU;
+    if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
+    if (tracking_fault) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
+}
+
 /* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
 #define LED_EVERY_TICKS 10u
 
@@ -220,10 +226,7 @@ static void tick(app_t *app)
         app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
     }
     if (app->enabled) command_servos(app);
-    /* the held bits of app_faults(), which is only needed whole at heartbeats and LEDs */
-    if (!usable) app->faults_since_heartbeat |= MSG_FAULT_IMU;
-    if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
-    if (tracking) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
+    hold_faults(app, usable, tracking);
     if (app->ticks_run % LED_EVERY_TICKS == 0u) show_state(app);
 }
 
