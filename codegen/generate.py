@@ -189,13 +189,22 @@ def estimator_context(m: config.Model):
                   cached=("e->sin_roll", "e->cos_roll", "e->sin_pitch", "e->cos_pitch"))
     Q, QH, B, U, W = quaternion.Q, quaternion.QH, quaternion.BIAS, quaternion.UP, quaternion.RATE
     q_c, qh_c, b_c = [f"e->q[{i}]" for i in range(4)], [f"q_hist[{i}]" for i in range(4)], [f"e->bias[{i}]" for i in range(3)]
-    q_next, b_next, rate, up_next = quaternion.step(m)
-    quat_step = _function([(f"const float q{i}", q_next[i]) for i in range(4)]
-                          + [(f"const float b{i}", b_next[i]) for i in range(3)]
-                          + [(f"e->rate[{i}]", rate[i]) for i in range(3)]
-                          + [(f"up[{i}]", up_next[i]) for i in range(3)],
-                          Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.GATE),
-                          q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "gate"])
+    # the step in three parts, so that its normalisation is 1 / |q_raw|^2 once, then a square
+    # root of that (SymPy would print 1 / sqrt(|q_raw|^2) and 1 / |q_raw|^2: two divisions)
+    q_raw, b_next, rate = quaternion.step_unnormalised(m)
+    r, inv2 = sp.symbols("r0:4", real=True), sp.Symbol("inv2", positive=True)
+    r_c = [str(v) for v in r]
+    raw_step = _function([(f"const float {r_c[i]}", q_raw[i]) for i in range(4)]
+                         + [(f"const float b{i}", b_next[i]) for i in range(3)]
+                         + [(f"e->rate[{i}]", rate[i]) for i in range(3)],
+                         Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.GATE),
+                         q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "gate"])
+    norm = _function([("const float inv2", 1 / sum(v * v for v in r))], r, r_c, prefix="n")
+    q_next, up_next = quaternion.normalised_step(r, inv2)
+    unit = _function([(f"const float q{i}", q_next[i]) for i in range(4)] + [(f"up[{i}]", up_next[i]) for i in range(3)],
+                     r + (inv2,), r_c + ["inv2"], prefix="u")
+    quat_step = {"lines": raw_step["lines"] + norm["lines"] + unit["lines"],
+                 "ops": raw_step["ops"] + norm["ops"] + unit["ops"]}
     quat_gate = _function([("const float gate", quaternion.accel_gate(m))], Q + acc + (quaternion.INNOVATION,),
                           q_c + acc_c + ["innovation_scale"], prefix="g")
     corr, err = quaternion.link_error()

@@ -1,6 +1,6 @@
 /* libFuzzer harness: the whole firmware application (firmware_stm32/App + generated/) on a
  * minimal in-memory board whose every input comes from the fuzzer: link bytes from the
- * drone, servo-bus replies, MPU-6050 registers (so the sample path mpu_read -> mpu_scale ->
+ * drone, servo-bus replies, MPU-6050 registers (so the sample path mpu_sample ->
  * filters -> estimator -> IK is fuzzed too) and time.
  *
  * Input: a header, then operations until the input ends (missing bytes read as 0).

@@ -118,6 +118,21 @@ def accel_gate(m: Model):
 
 def step(m: Model):
     """(q_next (4), bias_next (3), rate (3), up_next (3)): one sample of accelerometer and gyro."""
+    q_raw, b_next, rate = step_unnormalised(m)
+    q_next, up_next = normalised_step(q_raw, 1 / sum(c * c for c in q_raw))
+    return q_next, b_next, rate, up_next
+
+
+def normalised_step(q_raw, inv2):
+    """(q_next (4), up_next (3)) of the step's q_raw, given inv2 = 1 / |q_raw|^2 (a symbol for
+    the generated code: one division and one square root, not two divisions)."""
+    q_next = tuple(c * sp.sqrt(inv2) for c in q_raw)
+    up_next = list(up_of(q_raw) * inv2)      # = up_of(q_next), without normalising first
+    return q_next, up_next
+
+
+def step_unnormalised(m: Model):
+    """(q_raw (4), bias_next (3), rate (3)): the step before its normalisation."""
     M = mounting(m)
     a = M * sp.Matrix(ACC)
     w_m = M * sp.Matrix(GYRO)
@@ -128,12 +143,9 @@ def step(m: Model):
     b = sp.Matrix(BIAS)
     w = w_m - b + K_P * g * e
     q_raw = qmul(Q, delta(tuple(c * dt for c in w)))
-    inv2 = 1 / sum(c * c for c in q_raw)
-    q_next = tuple(c * sp.sqrt(inv2) for c in q_raw)
-    up_next = list(up_of(q_raw) * inv2)      # = up_of(q_next), without normalising first
     b_next = [_clamp(b[i] - K_I * g * e[i] * dt, _bias_max(m)) for i in range(3)]
     rate = [w_m[i] - b_next[i] for i in range(3)]
-    return q_next, b_next, rate, up_next
+    return q_raw, b_next, rate
 
 
 def from_up(u):

@@ -154,3 +154,31 @@ def test_dlpf_puts_the_propeller_band_well_below_its_corner_without_lagging_a_ti
     accel_bw, accel_delay_ms, gyro_bw, gyro_delay_ms, _ = DLPF_TABLE[dlpf_cfg_of_model()]
     assert PROPELLER_BAND_HZ[0] >= 2 * max(accel_bw, gyro_bw)
     assert max(accel_delay_ms, gyro_delay_ms) <= 1000 / MODEL.sample_rate
+
+
+@pytest.mark.parametrize("words, fresh", [
+    ([0x1234, -2, -32768, 0x7FFF, -1, 0x0100, 0x00FF], True),     # saturated accel z
+    ([100, -200, 16384, 0, 5, -6, 7], True),
+    ([100, -200, 16384, 0, 5, 32767, 7], False),                  # saturated gyro y
+    ([-32767, 32766, 0, -32768, 0, 0, -32768], True),             # temperature does not count
+])
+def test_the_ticks_one_pass_sample_agrees_with_read_saturated_and_scale(words, fresh):
+    chip = Chip()
+    assert chip.init()
+    burst = b"".join(w.to_bytes(2, "big", signed=True) for w in words)
+    int_status = ACCEL_XOUT_H - 1
+    for reader in ("three", "one"):
+        chip.regs[ACCEL_XOUT_H:ACCEL_XOUT_H + 14] = burst
+        chip.regs[int_status] = 0x01 if fresh else 0x00
+        if reader == "three":
+            ok, raw = chip.read()
+            assert ok
+            accel, gyro = chip.ffi.new("float[3]"), chip.ffi.new("float[3]")
+            chip.lib.mpu_scale(raw, accel, gyro)
+            expected = (list(accel), list(gyro), raw.fresh, chip.lib.mpu_saturated(raw))
+        else:
+            out = chip.ffi.new("mpu_sample_t *")
+            assert chip.lib.mpu_sample(chip.port, MODEL.imu_address, out)
+            assert (list(out.accel_g), list(out.gyro_rad_s), out.fresh, out.saturated) == expected
+    chip.hp.imu_present = False
+    assert not chip.lib.mpu_sample(chip.port, MODEL.imu_address, chip.ffi.new("mpu_sample_t *"))

@@ -34,6 +34,14 @@ typedef struct {
     bool fresh;                     /* DATA_RDY was set: the chip latched a sample since the last read */
 } mpu_raw_t;
 
+/* One burst as the tick uses it (mpu_sample). */
+typedef struct {
+    float accel_g[3];               /* mpu_scale */
+    float gyro_rad_s[3];
+    bool fresh;                     /* as mpu_raw_t */
+    bool saturated;                 /* mpu_saturated */
+} mpu_sample_t;
+
 /* Checks WHO_AM_I, wakes the chip on the gyro-X PLL clock, and writes sample rate divider,
  * digital low-pass, ranges and the data-ready interrupt from the model file, then reads
  * them back. False if the chip did not answer or a setting did not stick. */
@@ -47,6 +55,8 @@ bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw);
 bool mpu_saturated(const mpu_raw_t *raw);
 /* Raw counts to g and rad/s (ranges from the model file), still in the IMU's axes. */
 void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3]);
+/* mpu_read, mpu_saturated and mpu_scale in one pass over the burst: the tick's path. */
+bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out);
 /* cffi:end */
 
 #ifdef __cplusplus

@@ -107,6 +107,7 @@ typedef struct {
     bool read_due;
     uint16_t goal[SBUS_SERVOS];
     uint16_t speed[SBUS_SERVOS];
+    uint8_t ids[SBUS_SERVOS];           /* the servos' ids in joint order, for the SYNC_WRITE */
     uint8_t read_pkt[SBUS_SERVOS][8];   /* each servo's status READ, built once at init */
     uint8_t read_index;
     uint8_t read_attempt;

@@ -9,11 +9,6 @@
 #include "model_params.h"
 #include "servo_map.h"
 
-/* Fault bits the heartbeat reports if they stood at any tick since the previous one: they
- * can come and go between two heartbeats (a saturated sample, a short IMU dropout that
- * parked the arm, a servo that stalled for a moment). */
-#define APP_FAULTS_HELD (MSG_FAULT_IMU | MSG_FAULT_IMU_SATURATED | MSG_FAULT_SERVO_TRACKING)
-
 static const float PARK[3] = { MODEL_PARK_Q1, MODEL_PARK_Q2, MODEL_PARK_Q3 };
 
 static uint32_t now_us(const app_t *app)
@@ -156,27 +151,25 @@ static void imu_stale_tick(app_t *app)
     if (app->imu_stale == APP_IMU_STALE_TICKS) app->imu_retry_us = now_us(app);
 }
 
-static void sample_imu(app_t *app)
+/* A usable sample in *out? */
+static bool sample_imu(app_t *app, mpu_sample_t *out)
 {
-    mpu_raw_t raw;
-    float accel[3], gyro[3];
     /* set the chip up again if it is gone or stopped sampling (asleep after a brown-out) */
     if (!imu_usable(app) && now_us(app) - app->imu_retry_us >= APP_IMU_RETRY_MS * 1000u) try_imu(app);
-    if (!app->imu_ok) return;
-    if (!mpu_read(app->port, MODEL_MPU_ADDRESS, &raw)) {
+    if (!app->imu_ok) return false;
+    if (!mpu_sample(app->port, MODEL_MPU_ADDRESS, out)) {
         app->imu_errors++;
         imu_stale_tick(app);   /* one I2C glitch is no fault; a chip gone is, in a few ticks */
-        return;
+        return false;
     }
-    app->imu_saturated = mpu_saturated(&raw);
-    if (!raw.fresh || app->imu_saturated) {
+    app->imu_saturated = out->saturated;
+    if (!out->fresh || out->saturated) {
         imu_stale_tick(app);   /* no new sample, or one whose true value is unknown */
-        return;
+        return false;
     }
     app->imu_stale = 0;
     app->imu_samples_used++;
-    mpu_scale(&raw, accel, gyro);
-    stab_sample(&app->stab, accel, gyro, now_us(app), app->engaged);
+    return true;
 }
 
 /* The joints to command this tick and their speed. */
@@ -207,18 +200,33 @@ static void command_servos(app_t *app)
     sbus_command(&app->bus, units, speeds);
 }
 
+/* Fault bits the heartbeat reports if they stood at any tick since the previous one: they
+ * can come and go between two heartbeats (a saturated sample, a short IMU dropout that
+ * parked the arm, a servo that stalled for a moment). app_faults()'s imu, imu_saturated and
+ * servo_tracking bits, on their own: the whole word is only needed at heartbeats and LEDs. */
+static void hold_faults(app_t *app, bool imu_usable_now, bool tracking_fault)
+{
+    if (!imu_usable_now) app->faults_since_heartbeat |= MSG_FAULT_IMU;
+    if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
+    if (tracking_fault) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
+}
+
 /* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
 #define LED_EVERY_TICKS 10u
 
 static void tick(app_t *app)
 {
-    sample_imu(app);
-    track_update(&app->track, &app->bus, now_us(app));
-    if (app->engaged && (!imu_usable(app) || track_fault(&app->track))) {
+    mpu_sample_t imu;
+    const bool sampled = sample_imu(app, &imu);
+    const uint32_t now = now_us(app);   /* after the IMU transfer: the sample's time */
+    if (sampled) stab_sample(&app->stab, imu.accel_g, imu.gyro_rad_s, now, app->engaged);
+    track_update(&app->track, &app->bus, now);
+    const bool usable = imu_usable(app), tracking = track_fault(&app->track);
+    if (app->engaged && (!usable || tracking)) {
         app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
     }
     if (app->enabled) command_servos(app);
-    app->faults_since_heartbeat |= app_faults(app) & APP_FAULTS_HELD;
+    hold_faults(app, usable, tracking);
     if (app->ticks_run % LED_EVERY_TICKS == 0u) show_state(app);
 }
 

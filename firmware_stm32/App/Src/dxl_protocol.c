@@ -171,7 +171,7 @@ size_t dxl_build_sync_goal_speed(uint8_t *buf, size_t cap, size_t n_servos, cons
         out[2] = (uint8_t)(g >> 8);
         out[3] = (uint8_t)v;
         out[4] = (uint8_t)(v >> 8);
-        sum += id + (g & 0xFFu) + (g >> 8) + (v & 0xFFu) + (v >> 8);
+        sum += id + g + (g >> 8) + v + (v >> 8);   /* mod 256, g and v count as their low bytes */
         out += 5;
     }
     *out = (uint8_t)~sum;

@@ -77,3 +77,22 @@ void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3])
         gyro_rad_s[i] = (float)raw->gyro[i] * MODEL_GYRO_RAD_PER_LSB;
     }
 }
+
+bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
+{
+    uint8_t burst[MPU_BURST_BYTES];
+    if (!port->imu_read(port->ctx, address, MPU_REG_INT_STATUS, burst, sizeof burst)) {
+        return false;
+    }
+    const uint8_t *b = burst + (MPU_REG_ACCEL_XOUT_H - MPU_REG_INT_STATUS);
+    bool saturated = false;
+    for (int i = 0; i < 3; ++i) {
+        const int16_t a = be16(b + 2 * i), g = be16(b + 8 + 2 * i);
+        if (full_scale(a) || full_scale(g)) saturated = true;
+        out->accel_g[i] = (float)a * MODEL_ACCEL_G_PER_LSB;
+        out->gyro_rad_s[i] = (float)g * MODEL_GYRO_RAD_PER_LSB;
+    }
+    out->fresh = (burst[0] & MPU_INT_DATA_RDY) != 0u;
+    out->saturated = saturated;
+    return true;
+}

@@ -44,7 +44,7 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
     bus->port = port;
     bus->byte_us = (10u * 1000000u + baud - 1u) / baud;   /* start + 8 data + stop bits */
     for (int i = 0; i < SBUS_SERVOS; ++i) {
-        bus->servo[i].id = ids[i];
+        bus->servo[i].id = bus->ids[i] = ids[i];
         (void)dxl_build_read(bus->read_pkt[i], sizeof bus->read_pkt[i], ids[i], SBUS_STATUS_ADDR, SBUS_STATUS_LEN);
     }
     (void)dxl_parser_init(&bus->parser, bus->rx_buf, sizeof bus->rx_buf);
@@ -106,8 +106,7 @@ static bool start(sbus_t *bus, size_t len, uint8_t reply, uint8_t id, uint8_t n_
     /* a reply may take the longest return delay plus its own bytes, counted from the
      * instruction's last byte */
     bus->timeout_us = RETURN_DELAY_MAX_US + (DXL_STATUS_MIN_LEN + n_params) * bus->byte_us + REPLY_MARGIN_US;
-    bus->phase = PHASE_SENDING;
-    bus->phase_us = now_us(bus);
+    bus->phase = PHASE_SENDING;   /* (the reply's wait is timed from the end of sending) */
     return true;
 }
 
@@ -147,40 +146,97 @@ static bool parse_byte(sbus_t *bus, uint8_t byte)
     return false;
 }
 
-/* One received byte checked against the expected reply as it arrives; true when it
- * completed it. At the first byte that does not fit, the bytes so far go to the parser. */
-static bool direct_byte(sbus_t *bus, uint8_t byte)
+/* Bytes of the expected reply checked as they arrive, in locals (a byte store through bus
+ * would make the compiler reload every field). Returns how many of the n bytes fit it;
+ * *done when they completed it. */
+static size_t direct_bytes(sbus_t *bus, const uint8_t *b, size_t n, bool *done)
 {
-    const uint8_t i = bus->direct_len;
-    const uint8_t total = (uint8_t)(DXL_STATUS_MIN_LEN + bus->expect_params);
-    bool fits;
-    switch (i) {
-    case 0: case 1: fits = byte == 0xFF; break;
-    case 2: fits = byte == bus->expect_id; break;
-    case 3: fits = byte == bus->expect_params + 2u; break;
-    case 4: fits = byte <= 0x7Fu; break;
-    default: fits = i + 1u < total || (uint8_t)(bus->direct_sum + byte) == 0xFFu; break;
-    }
-    if (!fits) {
-        bus->resync = true;
-        for (uint8_t k = 0; k < i; ++k) {
-            if (parse_byte(bus, bus->direct[k])) return true;
+    const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
+    unsigned len = bus->direct_len, sum = bus->direct_sum;
+    uint8_t *dst = bus->direct;
+    const uint8_t head[4] = { 0xFF, 0xFF, bus->expect_id, (uint8_t)(bus->expect_params + 2u) };
+    size_t i = 0;
+    *done = false;
+    while (i < n) {
+        if (len >= 5u) {
+            /* the parameters always fit; the checksum byte must make the sum 0xFF */
+            size_t k = total - 1u - len;
+            if (k > n - i) k = n - i;
+            const uint8_t *src = b + i, *end = src + k;
+            uint8_t *out = dst + len;
+            while (src < end) {
+                const uint8_t x = *src++;
+                *out++ = x;
+                sum += x;
+            }
+            i += k;
+            len += (unsigned)k;
+            if (i == n) break;
+            if (((sum + b[i]) & 0xFFu) != 0xFFu) break;
+            dst[len++] = b[i++];
+            *done = true;
+            break;
         }
-        return parse_byte(bus, byte);
+        const uint8_t byte = b[i];
+        if (len < 4u ? byte != head[len] : byte > 0x7Fu) break;   /* (the error byte: bit 7 clear) */
+        if (len >= 2u) sum += byte;
+        dst[len++] = byte;
+        ++i;
     }
-    bus->direct[bus->direct_len++] = byte;
-    if (i >= 2u) bus->direct_sum = (uint8_t)(bus->direct_sum + byte);
-    if (bus->direct_len < total) return false;
-    sbus_servo_t *s = servo_of(bus, bus->expect_id);
-    if (s != NULL) note_error_byte(s, bus->direct[4]);
-    bus->reply_params = bus->direct + 5;
-    return true;
+    bus->direct_len = (uint8_t)len;
+    bus->direct_sum = (uint8_t)sum;
+    return i;
+}
+
+/* The transaction ends with its reply. */
+static bool replied(sbus_t *bus, int *how)
+{
+    bus->phase = PHASE_IDLE;
+    *how = DONE_OK;
+    return true;   /* bytes after it are dropped when the next request starts */
+}
+
+/* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
+ * then needs neither its registers nor its buffer. */
+static __attribute__((noinline)) bool receive(sbus_t *bus, int *how)
+{
+    uint8_t chunk[16];
+    size_t n;
+    while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
+        size_t i = 0;
+        if (!bus->resync) {
+            /* the usual case, the expected reply alone on the wire, checked directly */
+            bool done;
+            i = direct_bytes(bus, chunk, n, &done);
+            if (done) {
+                sbus_servo_t *s = servo_of(bus, bus->expect_id);
+                if (s != NULL) note_error_byte(s, bus->direct[4]);
+                bus->reply_params = bus->direct + 5;
+                return replied(bus, how);
+            }
+            if (i < n) {
+                /* chunk[i] does not fit: the bytes so far go to the parser, then the rest */
+                bus->resync = true;
+                for (uint8_t k = 0; k < bus->direct_len; ++k) {
+                    if (parse_byte(bus, bus->direct[k])) return replied(bus, how);
+                }
+            }
+        }
+        for (; i < n; ++i) {
+            if (parse_byte(bus, chunk[i])) return replied(bus, how);
+        }
+    }
+    if (now_us(bus) - bus->phase_us > bus->timeout_us) {
+        bus->phase = PHASE_IDLE;
+        *how = bus->reply == REPLY_OPTIONAL ? DONE_OK : DONE_TIMEOUT;
+        return true;
+    }
+    return false;
 }
 
 /* Advances the transaction on the wire; true when it has ended, with *how. */
 static bool transaction_done(sbus_t *bus, int *how)
 {
-    uint8_t chunk[16];
     if (bus->phase == PHASE_SENDING) {
         if (bus->port->servo_busy(bus->port->ctx)) return false;
         if (bus->reply == REPLY_NONE) {
@@ -192,39 +248,7 @@ static bool transaction_done(sbus_t *bus, int *how)
         bus->phase_us = now_us(bus);
     }
     if (bus->phase != PHASE_AWAIT) return false;
-
-    size_t n;
-    while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
-        for (size_t i = 0; i < n; ++i) {
-            if (!bus->resync && bus->direct_len >= 5u) {
-                /* the parameters always fit: copied and summed in locals (a byte store
-                 * through bus would make the compiler reload every field); the checksum
-                 * byte goes through direct_byte */
-                const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
-                unsigned len = bus->direct_len, sum = bus->direct_sum;
-                uint8_t *dst = bus->direct;
-                while (i < n && len + 1u < total) {
-                    const uint8_t b = chunk[i++];
-                    dst[len++] = b;
-                    sum += b;
-                }
-                bus->direct_len = (uint8_t)len;
-                bus->direct_sum = (uint8_t)sum;
-                if (i == n) break;
-            }
-            if (bus->resync ? parse_byte(bus, chunk[i]) : direct_byte(bus, chunk[i])) {
-                bus->phase = PHASE_IDLE;
-                *how = DONE_OK;
-                return true;   /* bytes after it are dropped when the next request starts */
-            }
-        }
-    }
-    if (now_us(bus) - bus->phase_us > bus->timeout_us) {
-        bus->phase = PHASE_IDLE;
-        *how = bus->reply == REPLY_OPTIONAL ? DONE_OK : DONE_TIMEOUT;
-        return true;
-    }
-    return false;
+    return receive(bus, how);
 }
 
 /* Drops whatever arrived since the last request (late replies, noise). */
@@ -352,13 +376,11 @@ static void run(sbus_t *bus)
             s->failed = true;
         }
         bus->read_attempt = 0;
-        bus->read_index = (uint8_t)((bus->read_index + 1u) % SBUS_SERVOS);
+        bus->read_index = (uint8_t)(bus->read_index + 1u < SBUS_SERVOS ? bus->read_index + 1u : 0u);
         return;
     }
     if (bus->command_pending) {
-        uint8_t ids[SBUS_SERVOS];
-        for (int i = 0; i < SBUS_SERVOS; ++i) ids[i] = bus->servo[i].id;
-        size_t len = dxl_build_sync_goal_speed(bus->tx, sizeof bus->tx, SBUS_SERVOS, ids, bus->goal, bus->speed);
+        size_t len = dxl_build_sync_goal_speed(bus->tx, sizeof bus->tx, SBUS_SERVOS, bus->ids, bus->goal, bus->speed);
         if (start(bus, len, REPLY_NONE, 0, 0)) {
             bus->command_pending = false;
             bus->read_due = true;

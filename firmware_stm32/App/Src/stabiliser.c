@@ -27,7 +27,7 @@ static void remember(stab_t *s, uint32_t now_us)
 {
     memcpy(s->hist_q[s->hist_next], s->quat.q, sizeof s->quat.q);
     s->hist_us[s->hist_next] = now_us;
-    s->hist_next = (uint8_t)((s->hist_next + 1u) % MODEL_LINK_HISTORY);
+    s->hist_next = (uint8_t)(s->hist_next + 1u < MODEL_LINK_HISTORY ? s->hist_next + 1u : 0u);   /* (no division) */
     if (s->hist_len < MODEL_LINK_HISTORY) s->hist_len++;
 }
 #endif
@@ -37,19 +37,24 @@ bool stab_link_fresh(const stab_t *s, uint32_t now_us)
     return MODEL_DRONE_ATTITUDE && s->link_valid && now_us - s->link_accepted_us < MODEL_LINK_TIMEOUT_US;
 }
 
+/* The first sample after a reset: filters and attitude at rest on it. Not inlined: the
+ * per-sample path then needs fewer registers saved. */
+static __attribute__((noinline)) void start(stab_t *s, const float accel_g[3], const float gyro_rad_s[3])
+{
+    for (int i = 0; i < 3; ++i) {
+        filt_accel_reset(&s->accel_filter[i], accel_g[i]);
+        filt_gyro_reset(&s->gyro_filter[i], gyro_rad_s[i]);
+    }
+    est_reset(&s->attitude, accel_g);
+    est_quat_reset(&s->quat, accel_g);
+    s->started = true;
+}
+
 void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], uint32_t now_us, bool engaged)
 {
     float acc[3];
-    if (!s->started) {
-        for (int i = 0; i < 3; ++i) {
-            filt_accel_reset(&s->accel_filter[i], accel_g[i]);
-            filt_gyro_reset(&s->gyro_filter[i], gyro_rad_s[i]);
-        }
-        est_reset(&s->attitude, accel_g);
-        est_quat_reset(&s->quat, accel_g);
-        s->started = true;
-    }
-    for (int i = 0; i < 3; ++i) acc[i] = filt_accel_step(&s->accel_filter[i], accel_g[i]);
+    if (!s->started) start(s, accel_g, gyro_rad_s);
+    filt_accel_step3(s->accel_filter, accel_g, acc);
 #if MODEL_ESTIMATOR_QUATERNION
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
     if (stab_link_fresh(s, now_us)) {
