@@ -376,7 +376,7 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     elf, binary, hexfile = (build / f"manipulator.{ext}" for ext in ("elf", "bin", "hex"))
     assert elf.exists() and binary.exists() and hexfile.exists()
     symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
-    for name in ("main", "app_init", "app_poll", "board_port_start", "kin_ik", "Reset_Handler"):
+    for name in ("main", "app_init", "app_poll", "board_port_start", "kin_ik_nearest", "Reset_Handler"):
         assert re.search(rf" T {name}$", symbols, re.M), name
     words = binary.read_bytes()[:8]
     stack, reset = int.from_bytes(words[:4], "little"), int.from_bytes(words[4:], "little")
