@@ -125,7 +125,7 @@ def whole_tick(m):
     per_tick = lambda r: {k: v / N_TICKS for k, v in r.items()}
     by_func = per_tick({k: v - idle.cycles_by_function.get(k, 0) for k, v in run.cycles_by_function.items()})
     arithmetic = sum(v for k, v in by_func.items()
-                     if k.startswith(("kin_", "est_", "filt_", "stab_", "fm_", "servo_joints_to_units", "mpu_scale", "mpu_sample")))
+                     if k.startswith(("kin_", "est_", "filt_", "stab_", "fm_", "servo_joints_to_units", "mpu_sample")))
     tick = (run.cycles - idle.cycles) / N_TICKS
     tick_insns = (run.insns - idle.insns) / N_TICKS
     ref_tick = base.cycles / N_TICKS

@@ -8,6 +8,7 @@ file through those tables, not from the generated C.
 """
 import math
 
+import numpy as np
 import pytest
 
 from uavarm import firmware
@@ -16,7 +17,7 @@ from uavarm.mpu6050_sim import Mpu6050
 
 # RM-MPU-6000A: register addresses
 SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG = 0x19, 0x1A, 0x1B, 0x1C
-INT_ENABLE, ACCEL_XOUT_H, PWR_MGMT_1, WHO_AM_I = 0x38, 0x3B, 0x6B, 0x75
+INT_ENABLE, INT_STATUS, ACCEL_XOUT_H, PWR_MGMT_1, WHO_AM_I = 0x38, 0x3A, 0x3B, 0x6B, 0x75
 # RM-MPU-6000A 4.3 (register 26): DLPF_CFG -> (accel bandwidth Hz, accel delay ms,
 # gyro bandwidth Hz, gyro delay ms, gyro output rate Hz)
 DLPF_TABLE = {
@@ -55,9 +56,14 @@ class Chip:
         return self.lib.mpu_init(self.port, address)
 
     def read(self):
-        raw = self.ffi.new("mpu_raw_t *")
-        ok = self.lib.mpu_read(self.port, MODEL.imu_address, raw)
-        return ok, raw
+        out = self.ffi.new("mpu_sample_t *")
+        ok = self.lib.mpu_sample(self.port, MODEL.imu_address, out)
+        return ok, out
+
+    def set_words(self, words, fresh=True):
+        """The sample registers (accel x y z, temperature, gyro x y z) and DATA_RDY."""
+        self.regs[ACCEL_XOUT_H:ACCEL_XOUT_H + 14] = b"".join(w.to_bytes(2, "big", signed=True) for w in words)
+        self.regs[INT_STATUS] = 0x01 if fresh else 0x00
 
 
 def dlpf_cfg_of_model():
@@ -102,29 +108,46 @@ def test_i2c_errors_are_reported(fault):
     assert not ok
 
 
-def test_burst_read_is_one_14_byte_transfer_of_big_endian_words():
+def scaled(words):
+    """Accel (g) and gyro (rad/s) of sample words by the datasheet: the model's range over
+    32768 counts, in float32 like the firmware."""
+    g_per_lsb = np.float32(1 / ACCEL_LSB_PER_G[MODEL.accel_range_g])
+    rad_per_lsb = np.float32(math.radians(MODEL.gyro_range_dps) / 32768)
+    accel = [float(np.float32(w) * g_per_lsb) for w in words[0:3]]
+    gyro = [float(np.float32(w) * rad_per_lsb) for w in words[4:7]]
+    return accel, gyro
+
+
+@pytest.mark.parametrize("words, fresh, saturated", [
+    ([0x1234, -2, -32768, 0x7FFF, -1, 0x0100, 0x00FF], True, True),     # accel z at full scale
+    ([100, -200, 16384, 0, 5, -6, 7], True, False),
+    ([100, -200, 16384, 0, 5, 32767, 7], False, True),                  # gyro y at full scale
+    ([-32767, 32766, 0, -32768, 0, 0, -1], True, False),                # temperature does not count
+])
+def test_burst_read_is_one_15_byte_transfer_of_big_endian_words(words, fresh, saturated):
     chip = Chip()
     assert chip.init()
-    words = [0x1234, -2, -32768, 0x7FFF, -1, 0x0100, 0x00FF]   # ax ay az temp gx gy gz
-    chip.regs[ACCEL_XOUT_H:ACCEL_XOUT_H + 14] = b"".join(w.to_bytes(2, "big", signed=True) for w in words)
+    chip.set_words(words, fresh)
     reads = chip.hp.imu_reads
-    ok, raw = chip.read()
+    ok, out = chip.read()
     assert ok and chip.hp.imu_reads == reads + 1
-    assert list(raw.accel) == words[0:3] and raw.temperature == words[3] and list(raw.gyro) == words[4:7]
+    accel, gyro = scaled(words)
+    assert list(out.accel_g) == accel
+    assert list(out.gyro_rad_s) == pytest.approx(gyro, rel=1.2e-7, abs=0)   # (float32 rounding of the constant)
+    assert (out.fresh, out.saturated) == (fresh, saturated)
 
 
 def test_scaling_uses_the_datasheet_sensitivities_of_the_model_ranges():
-    ffi, lib = firmware.default()
-    raw = ffi.new("mpu_raw_t *")
+    chip = Chip()
+    assert chip.init()
     lsb_g = ACCEL_LSB_PER_G[MODEL.accel_range_g]
     lsb_dps = GYRO_LSB_PER_DPS[MODEL.gyro_range_dps]
-    raw.accel = [lsb_g, -lsb_g // 2, 0]
-    raw.gyro = [round(100 * lsb_dps), round(-10 * lsb_dps), 0]
-    accel, gyro = ffi.new("float[3]"), ffi.new("float[3]")
-    lib.mpu_scale(raw, accel, gyro)
-    assert list(accel) == pytest.approx([1.0, -0.5, 0.0], rel=1e-6)
+    chip.set_words([lsb_g, -lsb_g // 2, 0, 0, round(100 * lsb_dps), round(-10 * lsb_dps), 0])
+    ok, out = chip.read()
+    assert ok
+    assert list(out.accel_g) == pytest.approx([1.0, -0.5, 0.0], rel=1e-6)
     # the datasheet rounds the sensitivity (65.5 for 32768 / 500): allow that rounding
-    assert list(gyro) == pytest.approx([math.radians(100), math.radians(-10), 0.0], rel=1e-3, abs=1e-9)
+    assert list(out.gyro_rad_s) == pytest.approx([math.radians(100), math.radians(-10), 0.0], rel=1e-3, abs=1e-9)
 
 
 def test_a_simulated_sample_reads_back_within_one_count():
@@ -132,13 +155,11 @@ def test_a_simulated_sample_reads_back_within_one_count():
     assert chip.init()
     accel_in, gyro_in = (0.1, -0.2, 0.97), (0.5, -1.0, 2.0)
     chip.sim.sample(accel_in, gyro_in)
-    ok, raw = chip.read()
+    ok, out = chip.read()
     assert ok
-    accel, gyro = chip.ffi.new("float[3]"), chip.ffi.new("float[3]")
-    chip.lib.mpu_scale(raw, accel, gyro)
     g_lsb = 1 / ACCEL_LSB_PER_G[MODEL.accel_range_g]
-    assert list(accel) == pytest.approx(accel_in, abs=g_lsb)
-    assert list(gyro) == pytest.approx(gyro_in, rel=1e-3, abs=1e-3)
+    assert list(out.accel_g) == pytest.approx(accel_in, abs=g_lsb)
+    assert list(out.gyro_rad_s) == pytest.approx(gyro_in, rel=1e-3, abs=1e-3)
 
 
 def test_dlpf_is_a_setting_the_datasheet_offers_at_the_1khz_rate():
@@ -154,31 +175,3 @@ def test_dlpf_puts_the_propeller_band_well_below_its_corner_without_lagging_a_ti
     accel_bw, accel_delay_ms, gyro_bw, gyro_delay_ms, _ = DLPF_TABLE[dlpf_cfg_of_model()]
     assert PROPELLER_BAND_HZ[0] >= 2 * max(accel_bw, gyro_bw)
     assert max(accel_delay_ms, gyro_delay_ms) <= 1000 / MODEL.sample_rate
-
-
-@pytest.mark.parametrize("words, fresh", [
-    ([0x1234, -2, -32768, 0x7FFF, -1, 0x0100, 0x00FF], True),     # saturated accel z
-    ([100, -200, 16384, 0, 5, -6, 7], True),
-    ([100, -200, 16384, 0, 5, 32767, 7], False),                  # saturated gyro y
-    ([-32767, 32766, 0, -32768, 0, 0, -32768], True),             # temperature does not count
-])
-def test_the_ticks_one_pass_sample_agrees_with_read_saturated_and_scale(words, fresh):
-    chip = Chip()
-    assert chip.init()
-    burst = b"".join(w.to_bytes(2, "big", signed=True) for w in words)
-    int_status = ACCEL_XOUT_H - 1
-    for reader in ("three", "one"):
-        chip.regs[ACCEL_XOUT_H:ACCEL_XOUT_H + 14] = burst
-        chip.regs[int_status] = 0x01 if fresh else 0x00
-        if reader == "three":
-            ok, raw = chip.read()
-            assert ok
-            accel, gyro = chip.ffi.new("float[3]"), chip.ffi.new("float[3]")
-            chip.lib.mpu_scale(raw, accel, gyro)
-            expected = (list(accel), list(gyro), raw.fresh, chip.lib.mpu_saturated(raw))
-        else:
-            out = chip.ffi.new("mpu_sample_t *")
-            assert chip.lib.mpu_sample(chip.port, MODEL.imu_address, out)
-            assert (list(out.accel_g), list(out.gyro_rad_s), out.fresh, out.saturated) == expected
-    chip.hp.imu_present = False
-    assert not chip.lib.mpu_sample(chip.port, MODEL.imu_address, chip.ffi.new("mpu_sample_t *"))

@@ -27,19 +27,13 @@ extern "C" {
 #define MPU_INT_DATA_RDY 1u
 #define MPU_BURST_BYTES 15          /* INT_STATUS and the sample, one transfer */
 
+/* One burst, decoded and scaled (mpu_sample). */
 typedef struct {
-    int16_t accel[3];
-    int16_t temperature;
-    int16_t gyro[3];
-    bool fresh;                     /* DATA_RDY was set: the chip latched a sample since the last read */
-} mpu_raw_t;
-
-/* One burst as the tick uses it (mpu_sample). */
-typedef struct {
-    float accel_g[3];               /* mpu_scale */
+    float accel_g[3];               /* counts x the model's range / 32768, still in the IMU's axes */
     float gyro_rad_s[3];
-    bool fresh;                     /* as mpu_raw_t */
-    bool saturated;                 /* mpu_saturated */
+    bool fresh;                     /* DATA_RDY was set: the chip latched a sample since the last read */
+    bool saturated;                 /* an accelerometer or gyro axis at -32768 or 32767 counts: the
+                                       true value may be beyond it */
 } mpu_sample_t;
 
 /* Checks WHO_AM_I, wakes the chip on the gyro-X PLL clock, and writes sample rate divider,
@@ -47,15 +41,9 @@ typedef struct {
  * them back. False if the chip did not answer or a setting did not stick. */
 bool mpu_init(const port_t *port, uint8_t address);
 /* One 15-byte burst from INT_STATUS: the data-ready flag (which the read clears) and the
- * sample. False on a bus error. A chip that stops sampling (asleep after a brown-out, hung)
+ * sample, scaled to g and rad/s with the model's ranges, and whether an axis is at full
+ * scale. False on a bus error. A chip that stops sampling (asleep after a brown-out, hung)
  * still answers, with fresh = false. */
-bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw);
-/* Any accelerometer or gyro axis at the end of its range (-32768 or 32767 counts): the true
- * value may be beyond it. */
-bool mpu_saturated(const mpu_raw_t *raw);
-/* Raw counts to g and rad/s (ranges from the model file), still in the IMU's axes. */
-void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3]);
-/* mpu_read, mpu_saturated and mpu_scale in one pass over the burst: the tick's path. */
 bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out);
 /* cffi:end */
 

@@ -39,43 +39,9 @@ static int16_t be16(const uint8_t *b)
     return (int16_t)(uint16_t)((uint16_t)b[0] << 8 | b[1]);
 }
 
-bool mpu_read(const port_t *port, uint8_t address, mpu_raw_t *raw)
-{
-    uint8_t burst[MPU_BURST_BYTES];
-    if (!port->imu_read(port->ctx, address, MPU_REG_INT_STATUS, burst, sizeof burst)) {
-        return false;
-    }
-    const uint8_t *b = burst + (MPU_REG_ACCEL_XOUT_H - MPU_REG_INT_STATUS);
-    for (int i = 0; i < 3; ++i) {
-        raw->accel[i] = be16(b + 2 * i);
-        raw->gyro[i] = be16(b + 8 + 2 * i);
-    }
-    raw->temperature = be16(b + 6);
-    raw->fresh = (burst[0] & MPU_INT_DATA_RDY) != 0u;
-    return true;
-}
-
 static bool full_scale(int16_t v)
 {
     return v == INT16_MIN || v == INT16_MAX;
-}
-
-bool mpu_saturated(const mpu_raw_t *raw)
-{
-    for (int i = 0; i < 3; ++i) {
-        if (full_scale(raw->accel[i]) || full_scale(raw->gyro[i])) {
-            return true;
-        }
-    }
-    return false;
-}
-
-void mpu_scale(const mpu_raw_t *raw, float accel_g[3], float gyro_rad_s[3])
-{
-    for (int i = 0; i < 3; ++i) {
-        accel_g[i] = (float)raw->accel[i] * MODEL_ACCEL_G_PER_LSB;
-        gyro_rad_s[i] = (float)raw->gyro[i] * MODEL_GYRO_RAD_PER_LSB;
-    }
 }
 
 bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
