@@ -73,17 +73,16 @@ def kinematics_context(m: config.Model):
 
     ikm = kinematics.ik(m)
     t = kinematics.TARGET_SYMBOLS
+    # each candidate's checks, in kin_check_joints' order: limits, body, legs
+    checks_of = [[kinematics.joint_limits_ok(m, cand.q), collision.body_clear(m, cand.geometry),
+                  collision.legs_clear(m, cand.geometry)] for cand in ikm.candidates]
     ik_out = [("const bool reachable", ikm.disc >= 0)]
     for i, cand in enumerate(ikm.candidates):
         ik_out += [(f"out->q[{i}][{j}]", cand.q[j]) for j in range(3)]
-    for i, cand in enumerate(ikm.candidates):
-        ik_out += [(f"limits_ok[{i}]", kinematics.joint_limits_ok(m, cand.q)),
-                   (f"body_ok[{i}]", collision.body_clear(m, cand.geometry)),
-                   (f"legs_ok[{i}]", collision.legs_clear(m, cand.geometry))]
+    for i, (limits_i, body_i, legs_i) in enumerate(checks_of):
+        ik_out += [(f"limits_ok[{i}]", limits_i), (f"body_ok[{i}]", body_i), (f"legs_ok[{i}]", legs_i)]
     ik_exprs = _bind([e for _, e in ik_out], t, ["x", "y", "z"])
-    temps, assigns = _finite_atan2(cse_lines(list(zip([l for l, _ in ik_out], ik_exprs))))
-    checks_of = [[kinematics.joint_limits_ok(m, cand.q), collision.body_clear(m, cand.geometry),
-                  collision.legs_clear(m, cand.geometry)] for cand in ikm.candidates]
+    temps, assigns = (_finite_atan2(lines) for lines in cse_lines(list(zip([l for l, _ in ik_out], ik_exprs))))
     return {
         "fk_ee": _function([(f"ee[{i}]", ee[i]) for i in range(3)], q, Q),
         "fk_joint3": _function([(f"j3[{i}]", j3[i]) for i in range(3)], q, Q),
@@ -97,10 +96,10 @@ def kinematics_context(m: config.Model):
     }
 
 
-def _finite_atan2(blocks):
+def _finite_atan2(lines):
     """The IK's C lines with fm_atan2f_finite: its target is refused unless finite and inside
     the reach box, so every atan2 argument is finite."""
-    return tuple([line.replace("fm_atan2f(", "fm_atan2f_finite(") for line in block] for block in blocks)
+    return [line.replace("fm_atan2f(", "fm_atan2f_finite(") for line in lines]
 
 
 def _ik_nearest(ikm, checks_of, target_symbols):
@@ -134,14 +133,14 @@ def _ik_nearest(ikm, checks_of, target_symbols):
     candidates = []
     for i in range(len(ikm.candidates)):
         have, steps = set(have_upfront), []
-        for k, why in enumerate(("KIN_JOINT_LIMIT", "KIN_BODY", "KIN_LEG")):   # kin_check_joints' order
+        for k, why in enumerate(("KIN_JOINT_LIMIT", "KIN_BODY", "KIN_LEG")):   # checks_of's order
             cond = reduced[n_angles + 3 * i + k]
             temps = closure([cond], have)
             have |= {sym for sym, _ in temps}
             steps.append({"lines": lines(temps), "ok": c(cond), "why": why})
         candidates.append(steps)
     return {
-        "lines": _finite_atan2([lines(upfront)])[0],
+        "lines": _finite_atan2(lines(upfront)),
         "reachable": c(reduced[0]),
         "q": [[c(reduced[1 + 3 * i + j]) for j in range(3)] for i in range(len(ikm.candidates))],
         "candidates": candidates,
