@@ -291,13 +291,13 @@ def estimator_params(m: config.Model):
 
 def check_park(m: config.Model) -> None:
     """The parked pose must pass the same checks the firmware applies to every command."""
-    q = [sp.rad(sp.nsimplify(d, rational=True)) for d in m.park_deg]
-    subs = dict(zip(kinematics.JOINT_SYMBOLS, q))
-    geo = kinematics.fk_geometry(m)
-    for what, cond in (("outside the joint limits", kinematics.joint_limits_ok(m, kinematics.JOINT_SYMBOLS)),
+    # the pose at 40 digits: the checks decide by numbers, not by exact trigonometry
+    q = [sp.rad(sp.nsimplify(d, rational=True)).evalf(40) for d in m.park_deg]
+    geo = kinematics.fk_geometry(m, at=q)
+    for what, cond in (("outside the joint limits", kinematics.joint_limits_ok(m, q)),
                        ("not below the body", collision.body_clear(m, geo)),
                        ("in a landing leg", collision.legs_clear(m, geo))):
-        if not bool(cond.subs(subs)):
+        if not bool(cond):
             raise config.ModelError(f"{m.path}: park.q: the parked pose {list(m.park_deg)} deg is {what}")
 
 

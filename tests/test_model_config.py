@@ -168,6 +168,26 @@ def test_good_park_poses_pass(model):
         generate.check_park(dataclasses.replace(model, park_deg=q))
 
 
+def test_park_check_agrees_with_plain_geometry(model):
+    """check_park (exact SymPy at the pose) against oracles.check_pose (numpy trigonometry)
+    on random poses over and beyond the joint ranges, away from the decision boundaries."""
+    rng = np.random.default_rng(22)
+    seen = set()
+    for q in rng.uniform(-160.0, 160.0, size=(120, 3)).round(1):
+        status, clear = oracles.check_pose(model, np.radians(q), margin=1e-6)
+        if not clear[0]:
+            continue
+        seen.add(int(status[0]))
+        try:
+            generate.check_park(dataclasses.replace(model, park_deg=tuple(q)))
+            verdict = 0
+        except config.ModelError as exc:
+            verdict = next(s for s, words in ((2, "joint limits"), (3, "body"), (4, "leg"))
+                           if words in str(exc))
+        assert verdict == status[0], (q, verdict, status[0])
+    assert seen == {0, 2, 3, 4}, seen      # every verdict was exercised
+
+
 def test_codegen_cli_reports_bad_park(tmp_path, capsys):
     path = tmp_path / "arm.toml"
     path.write_text(BASE.replace("q = [0.0, 60.0, -110.0]", "q = [0.0, 90.0, 90.0]", 1))
