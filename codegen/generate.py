@@ -171,7 +171,9 @@ def servo_context(m: config.Model):
             "to_angle": c(sp.expand(servo.units_to_joint(m, j, units)).evalf(40)),
             "units_min": lo, "units_max": hi,
         })
-    return {"joints": joints}
+    q = kinematics.JOINT_SYMBOLS
+    return {"joints": joints,
+            "check_limits": _function([("const bool limits_ok", kinematics.joint_limits_ok(m, q))], q, Q)}
 
 
 def estimator_context(m: config.Model):
