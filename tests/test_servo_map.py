@@ -68,3 +68,18 @@ def test_limits_map_inside_the_unit_range(model, gen):
             lo = expected_units(model, j, model.limits[j].min_rad)
             hi = expected_units(model, j, model.limits[j].max_rad)
             assert min(lo, hi) <= units[j] <= max(lo, hi)
+
+
+def test_refuses_the_first_angle_past_each_limit(model, gen):
+    """The nearest float32 beyond each end of each joint's travel (from the model's limits in
+    float64) is refused, the other joints at zero."""
+    ffi, lib = gen
+    units = ffi.new("uint16_t[3]")
+    for j, l in enumerate(model.limits):
+        for end, outward in ((l.min_rad, -np.inf), (l.max_rad, np.inf)):
+            v = np.float32(end)
+            while l.min_rad <= v <= l.max_rad:
+                v = np.nextafter(v, np.float32(outward))
+            q = [0.0, 0.0, 0.0]
+            q[j] = float(v)
+            assert not lib.servo_joints_to_units(ffi.new("float[3]", q), units), (j, end, v)
