@@ -46,10 +46,13 @@ def _split_pio2():
     return parts
 
 
+SINCOS_MAX = 2048.0   # fm_sincosf's domain (Kernels.sincos_max)
+
+
 def fit() -> Kernels:
     r_max2 = (mp.pi / 4) ** 2
     t_max2 = mp.tan(mp.pi / 8) ** 2
     sin_poly = _chebyshev_fit(lambda w: (mp.sin(mp.sqrt(w)) - mp.sqrt(w)) / w ** 1.5, r_max2, 3)
     cos_poly = _chebyshev_fit(lambda w: (mp.cos(mp.sqrt(w)) - 1 + w / 2) / w**2, r_max2, 3)
     atan_poly = _chebyshev_fit(lambda w: (mp.atan(mp.sqrt(w)) - mp.sqrt(w)) / w ** 1.5, t_max2, 4)
-    return Kernels(sin_poly, cos_poly, atan_poly, _split_pio2(), sincos_max=2048.0)
+    return Kernels(sin_poly, cos_poly, atan_poly, _split_pio2(), sincos_max=SINCOS_MAX)

@@ -29,9 +29,11 @@ Q = [f"q[{i}]" for i in range(3)]
 
 
 def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", "c1", "s2", "c2", "s3", "c3"),
-               cached=None):
+               cached=None, bounded=False):
     """Replace sin/cos of the angles by locals filled by fm_sincosf, or, with cached = C
-    expressions (sin, cos of each angle), read from there; returns (exprs, C lines)."""
+    expressions (sin, cos of each angle), read from there; returns (exprs, C lines).
+    bounded: the caller has checked the angles against the joint limits (inside
+    fm_sincosf's domain), so two of them may go through fm_sincos2f_bounded."""
     pairs = [(sp.Symbol(names[2 * i]), sp.Symbol(names[2 * i + 1])) for i in range(len(angles))]
     subs = {}
     for a, (si, ci) in zip(angles, pairs):
@@ -47,7 +49,12 @@ def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", 
         return out, [f"const float {pairs[i][0]} = {cached[2 * i]}, {pairs[i][1]} = {cached[2 * i + 1]};"
                      for i in present]
     decl = "float " + ", ".join(f"{pairs[i][0]}, {pairs[i][1]}" for i in present) + ";"
-    return out, [decl] + [f"fm_sincosf({c_angles[i]}, &{pairs[i][0]}, &{pairs[i][1]});" for i in present]
+    calls = [f"fm_sincosf({c_angles[i]}, &{pairs[i][0]}, &{pairs[i][1]});" for i in present]
+    if bounded and len(present) == 2:   # both at once: their constants loaded once
+        (i, j) = present
+        calls = [f"fm_sincos2f_bounded({c_angles[i]}, {c_angles[j]}, &{pairs[i][0]}, &{pairs[i][1]}, "
+                 f"&{pairs[j][0]}, &{pairs[j][1]});"]
+    return out, [decl] + calls
 
 
 def _bind(exprs, symbols, c_names):
@@ -65,6 +72,8 @@ def _function(outputs, symbols, c_names, prefix="t", **trig):
 
 def kinematics_context(m: config.Model):
     q = kinematics.JOINT_SYMBOLS
+    # kin_check_joints' sine and cosine skip fm_sincosf's range test after the limits test
+    assert all(max(abs(l.min_rad), abs(l.max_rad)) <= approx.SINCOS_MAX for l in m.limits)
     j3, ee = kinematics.fk_points(m)
     geo = kinematics.fk_geometry(m)
     limits = kinematics.joint_limits_ok(m, q)
@@ -87,7 +96,7 @@ def kinematics_context(m: config.Model):
         "fk_ee": _function([(f"ee[{i}]", ee[i]) for i in range(3)], q, Q),
         "fk_joint3": _function([(f"j3[{i}]", j3[i]) for i in range(3)], q, Q),
         "check_limits": _function([("const bool limits_ok", limits)], q, Q),
-        "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q),
+        "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q, bounded=True),
         "ik": {"lines": temps + assigns, "ops": op_count(ik_exprs)},
         "nearest": _ik_nearest(ikm, checks_of, t),
         "dh": kinematics.dh_rows(m),
