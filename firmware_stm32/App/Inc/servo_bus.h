@@ -114,6 +114,7 @@ typedef struct {
     uint8_t read_attempt;
     uint32_t sync_writes;
     uint32_t stray_packets;
+    uint32_t status_reads;              /* readings taken, of all servos (wraps) */
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */

@@ -41,6 +41,7 @@ typedef struct {
 
 typedef struct {
     track_servo_t servo[SBUS_SERVOS];
+    uint32_t status_reads_seen;    /* the driver's count of all readings when last looked at */
 } track_t;
 
 void track_reset(track_t *t);

@@ -7,7 +7,7 @@
 
 enum { PHASE_IDLE, PHASE_SENDING, PHASE_AWAIT };
 enum { REPLY_NONE, REPLY_OPTIONAL, REPLY_REQUIRED };
-enum { DONE_OK, DONE_TIMEOUT };
+enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 
 /* Registers written at enable (AX-12A control table addresses). */
 #define AX_RETURN_DELAY 5u
@@ -168,7 +168,8 @@ static bool direct_fits(const sbus_t *bus, unsigned n)
           && (n < 4u || d[3] == bus->expect_params + 2u) && (n < 5u || d[4] <= 0x7Fu))) {
         return false;
     }
-    return n < total || dxl_checksum(d + 2, total - 3u) == d[total - 1u];
+    /* (with the checksum byte itself, the bytes from ID on sum to 0xFF: their checksum is 0) */
+    return n < total || dxl_checksum(d + 2, total - 2u) == 0u;
 }
 
 /* What arrived of the expected reply, read straight into bus->direct; true when it completed
@@ -213,37 +214,34 @@ static bool receive_resync(sbus_t *bus)
 
 /* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
  * then needs neither its registers nor its buffer. */
-static __attribute__((noinline)) bool receive(sbus_t *bus, int *how)
+static __attribute__((noinline)) int receive(sbus_t *bus)
 {
     /* (bytes after the reply are dropped when the next request starts) */
     if ((!bus->resync && receive_direct(bus)) || (bus->resync && receive_resync(bus))) {
         bus->phase = PHASE_IDLE;
-        *how = DONE_OK;
-        return true;
+        return DONE_OK;
     }
     if (now_us(bus) - bus->phase_us > bus->timeout_us) {
         bus->phase = PHASE_IDLE;
-        *how = bus->reply == REPLY_OPTIONAL ? DONE_OK : DONE_TIMEOUT;
-        return true;
+        return bus->reply == REPLY_OPTIONAL ? DONE_OK : DONE_TIMEOUT;
     }
-    return false;
+    return NOT_DONE;
 }
 
-/* Advances the transaction on the wire; true when it has ended, with *how. */
-static bool transaction_done(sbus_t *bus, int *how)
+/* Advances the transaction on the wire: has it ended, and how? */
+static int transaction(sbus_t *bus)
 {
     if (bus->phase == PHASE_SENDING) {
-        if (bus->port->servo_busy(bus->port->ctx)) return false;
+        if (bus->port->servo_busy(bus->port->ctx)) return NOT_DONE;
         if (bus->reply == REPLY_NONE) {
             bus->phase = PHASE_IDLE;
-            *how = DONE_OK;
-            return true;
+            return DONE_OK;
         }
         bus->phase = PHASE_AWAIT;
         bus->phase_us = now_us(bus);
     }
-    if (bus->phase != PHASE_AWAIT) return false;
-    return receive(bus, how);
+    if (bus->phase != PHASE_AWAIT) return NOT_DONE;
+    return receive(bus);
 }
 
 /* Drops whatever arrived since the last request (late replies, noise). */
@@ -305,7 +303,6 @@ static void configure(sbus_t *bus)
 {
     const int i = bus->cfg_servo;
     sbus_servo_t *s = &bus->servo[i];
-    int how;
     if (bus->phase == PHASE_IDLE) {
         flush_rx(bus);
         uint8_t step = bus->cfg_step;
@@ -317,7 +314,8 @@ static void configure(sbus_t *bus)
         }
         return;
     }
-    if (!transaction_done(bus, &how)) return;
+    const int how = transaction(bus);
+    if (how == NOT_DONE) return;
     if (bus->cfg_step < CFG_VERIFY) {
         bus->cfg_step++;
         return;
@@ -352,21 +350,16 @@ static void take_status(sbus_servo_t *s, const uint8_t *p)
     s->reads++;
 }
 
-/* The queued goals and speeds into the SYNC_WRITE; its length, or 0 (nothing written) when
- * a value is out of range: the servo would answer a range error nobody hears. */
+/* The queued goals and speeds into the SYNC_WRITE; its length, or 0 when a value is out of
+ * range (the servo would answer a range error nobody hears) or the ids cannot be sent. */
 static size_t sync_fill(sbus_t *bus)
 {
-    const uint16_t *goal = bus->goal, *speed = bus->speed;
-    unsigned goals = 0, speeds = 0;
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
-        goals |= goal[i];
-        speeds |= speed[i];
-    }
-    if (bus->sync_len == 0 || goals > DXL_AX_POSITION_MAX || speeds > DXL_AX_SPEED_MAX) return 0;
-    unsigned sum = bus->sync_sum0;
+    unsigned goals = 0, speeds = 0, sum = bus->sync_sum0;
     uint8_t *e = bus->sync_pkt + SYNC_ENTRY(0);
     for (int i = 0; i < SBUS_SERVOS; ++i, e += 5) {
-        const unsigned g = goal[i], v = speed[i];
+        const unsigned g = bus->goal[i], v = bus->speed[i];
+        goals |= g;
+        speeds |= v;
         e[1] = (uint8_t)g;
         e[2] = (uint8_t)(g >> 8);
         e[3] = (uint8_t)v;
@@ -374,17 +367,19 @@ static size_t sync_fill(sbus_t *bus)
         sum += g + (g >> 8) + v + (v >> 8);   /* mod 256, g and v count as their low bytes */
     }
     *e = (uint8_t)~sum;
-    return bus->sync_len;
+    /* (a packet with a value out of range is never sent: the next command rewrites it) */
+    return goals > DXL_AX_POSITION_MAX || speeds > DXL_AX_SPEED_MAX ? 0 : bus->sync_len;
 }
 
 static void run(sbus_t *bus)
 {
-    int how;
     if (bus->phase != PHASE_IDLE) {
-        if (!transaction_done(bus, &how) || bus->reply == REPLY_NONE) return;
+        const int how = transaction(bus);
+        if (how == NOT_DONE || bus->reply == REPLY_NONE) return;
         sbus_servo_t *s = &bus->servo[bus->read_index];
         if (how == DONE_OK) {
             take_status(s, bus->reply_params);
+            bus->status_reads++;
         } else {
             s->timeouts++;
             if (bus->read_attempt < SBUS_READ_RETRIES) {

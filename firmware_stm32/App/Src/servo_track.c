@@ -29,6 +29,8 @@ static bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal, uint16_t
 
 void track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
 {
+    if (bus->status_reads == t->status_reads_seen) return;   /* no reading since the last look */
+    t->status_reads_seen = bus->status_reads;
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         track_servo_t *w = &t->servo[i];
         const sbus_servo_t *s = &bus->servo[i];
