@@ -175,7 +175,6 @@ static bool sample_imu(app_t *app, mpu_sample_t *out)
 /* The joints to command this tick and their speed. */
 static uint16_t choose_joints(app_t *app, float q[3])
 {
-    memcpy(q, app->q_cmd, sizeof app->q_cmd);
     app->out_of_reach = false;
     if (!app->engaged) {
         memcpy(q, PARK, sizeof PARK);

@@ -158,18 +158,24 @@ static bool parse_byte(sbus_t *bus, uint8_t byte)
     return false;
 }
 
-/* Do the n bytes held of the expected reply fit it? FF FF ID LEN ERR (bit 7 of the error
- * byte clear), any parameters, and once all are there the checksum. */
-static bool direct_fits(const sbus_t *bus, unsigned n)
+/* Do the first n (up to 5) bytes held fit FF FF ID LEN ERR, with bit 7 of the error byte
+ * clear? */
+static inline bool head_fits(const sbus_t *bus, unsigned n)
 {
     const uint8_t *d = bus->direct;
+    return (n < 1u || d[0] == 0xFFu) && (n < 2u || d[1] == 0xFFu) && (n < 3u || d[2] == bus->expect_id)
+        && (n < 4u || d[3] == bus->expect_params + 2u) && (n < 5u || d[4] <= 0x7Fu);
+}
+
+/* Do the n bytes held of the expected reply fit it? Its header, any parameters, and once all
+ * are there the checksum. */
+static bool direct_fits(const sbus_t *bus, unsigned n)
+{
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
-    if (!((n < 1u || d[0] == 0xFFu) && (n < 2u || d[1] == 0xFFu) && (n < 3u || d[2] == bus->expect_id)
-          && (n < 4u || d[3] == bus->expect_params + 2u) && (n < 5u || d[4] <= 0x7Fu))) {
-        return false;
-    }
-    /* (with the checksum byte itself, the bytes from ID on sum to 0xFF: their checksum is 0) */
-    return n < total || dxl_checksum(d + 2, total - 2u) == 0u;
+    if (n < total) return head_fits(bus, n);
+    /* all of it (usually at one read); with the checksum byte itself, the bytes from ID on
+     * sum to 0xFF: their checksum is 0 */
+    return head_fits(bus, 5u) && dxl_checksum(bus->direct + 2, total - 2u) == 0u;
 }
 
 /* What arrived of the expected reply, read straight into bus->direct; true when it completed
@@ -228,8 +234,9 @@ static __attribute__((noinline)) int receive(sbus_t *bus)
     return NOT_DONE;
 }
 
-/* Advances the transaction on the wire: has it ended, and how? */
-static int transaction(sbus_t *bus)
+/* Advances the transaction on the wire: has it ended, and how? (Inlined: run() calls it at
+ * every poll while a transaction is on.) */
+static inline __attribute__((always_inline)) int transaction(sbus_t *bus)
 {
     if (bus->phase == PHASE_SENDING) {
         if (bus->port->servo_busy(bus->port->ctx)) return NOT_DONE;
@@ -245,7 +252,7 @@ static int transaction(sbus_t *bus)
 }
 
 /* Drops whatever arrived since the last request (late replies, noise). */
-static void flush_rx(sbus_t *bus)
+static inline __attribute__((always_inline)) void flush_rx(sbus_t *bus)
 {
     uint8_t chunk[16];
     while (bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk) > 0) {
@@ -357,14 +364,15 @@ static size_t sync_fill(sbus_t *bus)
     unsigned goals = 0, speeds = 0, sum = bus->sync_sum0;
     uint8_t *e = bus->sync_pkt + SYNC_ENTRY(0);
     for (int i = 0; i < SBUS_SERVOS; ++i, e += 5) {
-        const unsigned g = bus->goal[i], v = bus->speed[i];
+        const uint32_t g = bus->goal[i], v = bus->speed[i];
+        const uint32_t w = g | v << 16;   /* the entry's goal and speed bytes, first at bits 0..7 */
         goals |= g;
         speeds |= v;
-        e[1] = (uint8_t)g;
-        e[2] = (uint8_t)(g >> 8);
-        e[3] = (uint8_t)v;
-        e[4] = (uint8_t)(v >> 8);
-        sum += g + (g >> 8) + v + (v >> 8);   /* mod 256, g and v count as their low bytes */
+        e[1] = (uint8_t)w;
+        e[2] = (uint8_t)(w >> 8);
+        e[3] = (uint8_t)(w >> 16);
+        e[4] = (uint8_t)(w >> 24);
+        sum += w + (w >> 8) + (w >> 16) + (w >> 24);   /* mod 256, the sum of those 4 bytes */
     }
     *e = (uint8_t)~sum;
     /* (a packet with a value out of range is never sent: the next command rewrites it) */
