@@ -219,8 +219,8 @@ static void tick(app_t *app)
     const bool sampled = sample_imu(app, &imu);
     const uint32_t now = now_us(app);   /* after the IMU transfer: the sample's time */
     if (sampled) stab_sample(&app->stab, imu.accel_g, imu.gyro_rad_s, now, app->engaged);
-    track_update(&app->track, &app->bus, now);
-    const bool usable = imu_usable(app), tracking = track_fault(&app->track);
+    const bool tracking = track_update(&app->track, &app->bus, now);
+    const bool usable = imu_usable(app);
     if (app->engaged && (!usable || tracking)) {
         app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
     }

@@ -178,9 +178,21 @@ static bool direct_fits(const sbus_t *bus, unsigned n)
     return head_fits(bus, 5u) && dxl_checksum(bus->direct + 2, total - 2u) == 0u;
 }
 
+/* The len bytes received for the request, which do not fit the expected reply, through the
+ * parser, as all that follows (receive()); true when they completed the reply. Not inlined,
+ * like receive_resync(): the usual reply needs neither. */
+static __attribute__((noinline)) bool resync_direct(sbus_t *bus, unsigned len)
+{
+    bus->resync = true;
+    for (unsigned k = 0; k < len; ++k) {
+        if (parse_byte(bus, bus->direct[k])) return true;
+    }
+    return false;
+}
+
 /* What arrived of the expected reply, read straight into bus->direct; true when it completed
  * it. At the first byte that does not fit, everything received for the request goes to the
- * parser instead (bus->resync). */
+ * parser instead. */
 static bool receive_direct(sbus_t *bus)
 {
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
@@ -188,14 +200,7 @@ static bool receive_direct(sbus_t *bus)
     while ((n = bus->port->servo_read(bus->port->ctx, bus->direct + bus->direct_len, total - bus->direct_len)) > 0) {
         const unsigned len = bus->direct_len + (unsigned)n;
         bus->direct_len = (uint8_t)len;
-        if (!direct_fits(bus, len)) {
-            /* (receive() then reads on through the parser) */
-            bus->resync = true;
-            for (unsigned k = 0; k < len; ++k) {
-                if (parse_byte(bus, bus->direct[k])) return true;
-            }
-            return false;
-        }
+        if (!direct_fits(bus, len)) return resync_direct(bus, len);
         if (len == total) {
             note_error_byte(bus->expect_servo, bus->direct[4]);
             bus->reply_params = bus->direct + 5;
@@ -206,7 +211,7 @@ static bool receive_direct(sbus_t *bus)
 }
 
 /* What arrived since, through the parser; true when it completed the reply. */
-static bool receive_resync(sbus_t *bus)
+static __attribute__((noinline)) bool receive_resync(sbus_t *bus)
 {
     uint8_t chunk[16];
     size_t n;
