@@ -20,9 +20,9 @@
  *
  * Received bytes are matched to the request by servo id and parameter count, so the
  * master's own echo (a single-wire UART hears itself) and stray packets are ignored. The
- * usual case, the expected status packet alone on the wire, is checked directly as its
- * bytes arrive; at the first byte that does not fit it, everything received for the request
- * goes through the resynchronising parser of dxl_protocol.h instead.
+ * usual case, the expected status packet alone on the wire, is read straight into a buffer
+ * and checked there; once a byte does not fit it, everything received for the request goes
+ * through the resynchronising parser of dxl_protocol.h instead.
  */
 #ifndef SERVO_BUS_H
 #define SERVO_BUS_H

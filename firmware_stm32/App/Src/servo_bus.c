@@ -106,7 +106,7 @@ uint32_t sbus_tick_bus_time_us(const sbus_t *bus)
 
 /* --------------------------------------------------------------- transactions */
 
-/* Sends the len bytes at pkt (the port copies them); false if it cannot now. */
+/* Sends the len bytes at pkt; false if len is 0 or the port cannot send now. */
 static bool send(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply)
 {
     if (len == 0 || !bus->port->servo_send(bus->port->ctx, pkt, len)) return false;
@@ -224,7 +224,7 @@ static __attribute__((noinline)) bool receive_resync(sbus_t *bus)
 }
 
 /* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
- * then needs neither its registers nor its buffer. */
+ * then needs none of its registers. */
 static __attribute__((noinline)) int receive(sbus_t *bus)
 {
     /* (bytes after the reply are dropped when the next request starts) */
@@ -256,7 +256,8 @@ static inline __attribute__((always_inline)) int transaction(sbus_t *bus)
     return receive(bus);
 }
 
-/* Drops whatever arrived since the last request (late replies, noise). */
+/* Drops whatever arrived since the last request (late replies, noise). (Inlined: it comes
+ * before every status read.) */
 static inline __attribute__((always_inline)) void flush_rx(sbus_t *bus)
 {
     uint8_t chunk[16];
