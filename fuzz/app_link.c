@@ -433,7 +433,9 @@ static void poll_and_check(void)
     /* buffers inside app_t, where AddressSanitizer does not look */
     CHECK(APP.bus.parser.buf == APP.bus.rx_buf && APP.bus.parser.size <= sizeof APP.bus.rx_buf);
     CHECK(APP.bus.parser.len <= APP.bus.parser.size);
-    CHECK(APP.bus.direct_len <= sizeof APP.bus.direct && APP.bus.tx_len <= sizeof APP.bus.tx);
+    CHECK(APP.bus.direct_len <= DXL_STATUS_MIN_LEN + APP.bus.expect_params
+          && DXL_STATUS_MIN_LEN + APP.bus.expect_params <= sizeof APP.bus.direct);
+    CHECK(APP.bus.sync_len <= sizeof APP.bus.sync_pkt);
     CHECK(APP.link.count <= APP.link.len);
 }
 

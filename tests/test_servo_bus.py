@@ -109,6 +109,29 @@ def test_every_packet_is_what_the_official_sdk_builds():
     assert bytes(board.servo_tx) == b"".join(p.raw for p in log.tx)
 
 
+def test_a_command_beyond_the_registers_ranges_is_held_back():
+    """Goal Position takes 0..1023 and Moving Speed 0..2047 (AX12_FACTS.md control table):
+    the driver sends no SYNC_WRITE with a value beyond, and the next command replaces it."""
+    board, log = enabled_board()
+    ffi, lib, bus = board.ffi, board.lib, board.app.bus
+    # between ticks, with the bus idle: the driver's own polls, no tick to queue a command
+    assert run_until(board, lambda: bus.phase == 0 and not bus.command_pending and not bus.read_due,
+                     0.1) is not None
+    p = ffi.addressof(board.app, "bus")
+    u16 = lambda v: ffi.new("uint16_t[3]", v)
+    sends = board.hp.servo_sends
+    for goal, speed in [([1024, 0, 0], [0, 0, 0]), ([0, 0, 0], [0, 2048, 0]), ([0, 0, 0xFFFF], [0, 0, 0])]:
+        lib.sbus_command(p, u16(goal), u16(speed))
+        lib.sbus_poll(p)
+        assert board.hp.servo_sends == sends and bus.command_pending
+    lib.sbus_command(p, u16([1023, 0, 512]), u16([2047, 0, 1]))
+    lib.sbus_poll(p)
+    assert board.hp.servo_sends == sends + 1 and not bus.command_pending
+    board.run(0.001)   # the packet onto the simulated bus
+    sync = next(s for s in log.syncs() if sync_goal_speed(s.raw)[0] == [1023, 0, 512])
+    assert sync_goal_speed(sync.raw)[1] == [2047, 0, 1] and sync.raw == sdk_rebuild(sync.raw)
+
+
 def test_disable_stops_all_traffic_and_reenable_configures_again():
     board, log = enabled_board()
     board.run(0.1)

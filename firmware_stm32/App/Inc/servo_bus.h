@@ -20,9 +20,9 @@
  *
  * Received bytes are matched to the request by servo id and parameter count, so the
  * master's own echo (a single-wire UART hears itself) and stray packets are ignored. The
- * usual case, the expected status packet alone on the wire, is checked directly as its
- * bytes arrive; at the first byte that does not fit it, everything received for the request
- * goes through the resynchronising parser of dxl_protocol.h instead.
+ * usual case, the expected status packet alone on the wire, is read straight into a buffer
+ * and checked there; once a byte does not fit it, everything received for the request goes
+ * through the resynchronising parser of dxl_protocol.h instead.
  */
 #ifndef SERVO_BUS_H
 #define SERVO_BUS_H
@@ -87,13 +87,12 @@ typedef struct {
     uint8_t reply;                 /* none, optional, required */
     uint8_t expect_id;
     uint8_t expect_params;
+    sbus_servo_t *expect_servo;    /* the servo asked (its id is expect_id) */
     uint32_t phase_us;
     uint32_t timeout_us;
-    uint8_t tx[SBUS_TX_MAX];
-    uint8_t tx_len;
+    uint8_t tx[SBUS_TX_MAX];       /* the configuration's packets */
     uint8_t direct[DXL_STATUS_MIN_LEN + SBUS_VERIFY_LEN];   /* the expected reply so far */
     uint8_t direct_len;
-    uint8_t direct_sum;            /* its bytes from ID on, summed as they arrive (checksum) */
     bool resync;                   /* this request's bytes go through the parser */
     const uint8_t *reply_params;   /* the accepted reply's parameters */
     uint8_t rx_buf[SBUS_RX_MAX];
@@ -107,12 +106,15 @@ typedef struct {
     bool read_due;
     uint16_t goal[SBUS_SERVOS];
     uint16_t speed[SBUS_SERVOS];
-    uint8_t ids[SBUS_SERVOS];           /* the servos' ids in joint order, for the SYNC_WRITE */
+    uint8_t sync_pkt[8 + 5 * SBUS_SERVOS];   /* the SYNC_WRITE, its constant bytes built once at init */
+    uint8_t sync_len;                   /* its length, 0 if the ids cannot be sent */
+    uint8_t sync_sum0;                  /* the sum of its constant bytes from ID on (checksum) */
     uint8_t read_pkt[SBUS_SERVOS][8];   /* each servo's status READ, built once at init */
     uint8_t read_index;
     uint8_t read_attempt;
     uint32_t sync_writes;
     uint32_t stray_packets;
+    uint32_t status_reads;              /* readings taken, of all servos (wraps) */
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */

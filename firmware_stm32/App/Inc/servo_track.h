@@ -41,12 +41,13 @@ typedef struct {
 
 typedef struct {
     track_servo_t servo[SBUS_SERVOS];
+    uint32_t status_reads_seen;    /* the driver's count of all readings when last looked at */
 } track_t;
 
 void track_reset(track_t *t);
 /* Looks at the readings the driver took since the last call, against the goal and speed
- * the driver last sent (call before the next command is queued). */
-void track_update(track_t *t, const sbus_t *bus, uint32_t now_us);
+ * the driver last sent (call before the next command is queued). Returns track_fault(). */
+bool track_update(track_t *t, const sbus_t *bus, uint32_t now_us);
 /* Any servo's tracking fault standing. */
 bool track_fault(const track_t *t);
 /* cffi:end */

@@ -172,31 +172,33 @@ static bool sample_imu(app_t *app, mpu_sample_t *out)
     return true;
 }
 
-/* The joints to command this tick and their speed. */
-static uint16_t choose_joints(app_t *app, float q[3])
+/* The joints to command this tick, and the servos' speeds. */
+static const uint16_t *choose_joints(app_t *app, float q[3])
 {
-    memcpy(q, app->q_cmd, sizeof app->q_cmd);
+    static const uint16_t park_speeds[SBUS_SERVOS] = { MODEL_PARK_SPEED, MODEL_PARK_SPEED, MODEL_PARK_SPEED };
+    static const uint16_t working_speeds[SBUS_SERVOS] = {
+        MODEL_WORKING_SPEED, MODEL_WORKING_SPEED, MODEL_WORKING_SPEED,
+    };
     app->out_of_reach = false;
     if (!app->engaged) {
         memcpy(q, PARK, sizeof PARK);
-        return MODEL_PARK_SPEED;
+        return park_speeds;
     }
     if (stab_solve(&app->stab, app->set_position, app->q_cmd, q) != KIN_OK) {
         memcpy(q, app->q_cmd, sizeof app->q_cmd);   /* hold */
         app->out_of_reach = true;
     }
-    return MODEL_WORKING_SPEED;
+    return working_speeds;
 }
 
 static void command_servos(app_t *app)
 {
     float q[3];
     uint16_t units[SBUS_SERVOS];
-    const uint16_t speed = choose_joints(app, q);
+    const uint16_t *speeds = choose_joints(app, q);
     /* Last line of defence: nothing reaches a servo unless the generated checks pass. */
     if (kin_check_joints(q) != KIN_OK || !servo_joints_to_units(q, units)) return;
     memcpy(app->q_cmd, q, sizeof q);
-    const uint16_t speeds[SBUS_SERVOS] = { speed, speed, speed };
     sbus_command(&app->bus, units, speeds);
 }
 
@@ -220,8 +222,8 @@ static void tick(app_t *app)
     const bool sampled = sample_imu(app, &imu);
     const uint32_t now = now_us(app);   /* after the IMU transfer: the sample's time */
     if (sampled) stab_sample(&app->stab, imu.accel_g, imu.gyro_rad_s, now, app->engaged);
-    track_update(&app->track, &app->bus, now);
-    const bool usable = imu_usable(app), tracking = track_fault(&app->track);
+    const bool tracking = track_update(&app->track, &app->bus, now);
+    const bool usable = imu_usable(app);
     if (app->engaged && (!usable || tracking)) {
         app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
     }

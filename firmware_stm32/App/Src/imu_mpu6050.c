@@ -34,14 +34,16 @@ bool mpu_init(const port_t *port, uint8_t address)
     return true;
 }
 
-static int16_t be16(const uint8_t *b)
+static int32_t be16(const uint8_t *b)
 {
     return (int16_t)(uint16_t)((uint16_t)b[0] << 8 | b[1]);
 }
 
-static bool full_scale(int16_t v)
+/* At full scale, -32768 or 32767 counts, the true value may be beyond it: exactly the v for
+ * which v + 32767, taken unsigned, is 65534 or more (one compare). */
+static uint32_t full_scale(int32_t v)
 {
-    return v == INT16_MIN || v == INT16_MAX;
+    return (uint32_t)(v + 32767) >= 65534u;
 }
 
 bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
@@ -50,15 +52,19 @@ bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
     if (!port->imu_read(port->ctx, address, MPU_REG_INT_STATUS, burst, sizeof burst)) {
         return false;
     }
+    /* accel x, y, z, temperature, gyro x, y, z: the six axes written out, each read once */
     const uint8_t *b = burst + (MPU_REG_ACCEL_XOUT_H - MPU_REG_INT_STATUS);
-    bool saturated = false;
-    for (int i = 0; i < 3; ++i) {
-        const int16_t a = be16(b + 2 * i), g = be16(b + 8 + 2 * i);
-        if (full_scale(a) || full_scale(g)) saturated = true;
-        out->accel_g[i] = (float)a * MODEL_ACCEL_G_PER_LSB;
-        out->gyro_rad_s[i] = (float)g * MODEL_GYRO_RAD_PER_LSB;
-    }
+    const int32_t ax = be16(b), ay = be16(b + 2), az = be16(b + 4);
+    const int32_t gx = be16(b + 8), gy = be16(b + 10), gz = be16(b + 12);
+    out->accel_g[0] = (float)ax * MODEL_ACCEL_G_PER_LSB;
+    out->accel_g[1] = (float)ay * MODEL_ACCEL_G_PER_LSB;
+    out->accel_g[2] = (float)az * MODEL_ACCEL_G_PER_LSB;
+    out->gyro_rad_s[0] = (float)gx * MODEL_GYRO_RAD_PER_LSB;
+    out->gyro_rad_s[1] = (float)gy * MODEL_GYRO_RAD_PER_LSB;
+    out->gyro_rad_s[2] = (float)gz * MODEL_GYRO_RAD_PER_LSB;
     out->fresh = (burst[0] & MPU_INT_DATA_RDY) != 0u;
-    out->saturated = saturated;
+    /* (| rather than ||: no branch per axis) */
+    out->saturated = (full_scale(ax) | full_scale(ay) | full_scale(az)
+                      | full_scale(gx) | full_scale(gy) | full_scale(gz)) != 0u;
     return true;
 }

@@ -7,7 +7,7 @@
 
 enum { PHASE_IDLE, PHASE_SENDING, PHASE_AWAIT };
 enum { REPLY_NONE, REPLY_OPTIONAL, REPLY_REQUIRED };
-enum { DONE_OK, DONE_TIMEOUT };
+enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 
 /* Registers written at enable (AX-12A control table addresses). */
 #define AX_RETURN_DELAY 5u
@@ -23,6 +23,14 @@ enum { DONE_OK, DONE_TIMEOUT };
 #define REPLY_MARGIN_US 1000u
 
 enum { CFG_SRL, CFG_RETURN_DELAY, CFG_ANGLE_LIMITS, CFG_TORQUE_LIMIT, CFG_TORQUE_ENABLE, CFG_VERIFY, CFG_STEPS };
+
+/* The SYNC_WRITE of goal position and moving speed (dxl_protocol.h): FF FF FE LEN 83 1E 04, then
+ * per servo its ID, goal (2 bytes) and speed (2 bytes), then the checksum. */
+#define SYNC_ENTRY(i) (7u + 5u * (unsigned)(i))
+typedef char sync_pkt_fits[(sizeof ((sbus_t *)0)->sync_pkt == SYNC_ENTRY(SBUS_SERVOS) + 1u) ? 1 : -1];
+/* sync_fill() checks a set of values against a limit with one compare of their OR */
+typedef char limits_are_all_ones[((DXL_AX_POSITION_MAX & (DXL_AX_POSITION_MAX + 1)) == 0
+                                  && (DXL_AX_SPEED_MAX & (DXL_AX_SPEED_MAX + 1)) == 0) ? 1 : -1];
 
 static const uint16_t CW_LIMIT[SBUS_SERVOS] = { MODEL_SERVO1_CW_LIMIT, MODEL_SERVO2_CW_LIMIT, MODEL_SERVO3_CW_LIMIT };
 static const uint16_t CCW_LIMIT[SBUS_SERVOS] = { MODEL_SERVO1_CCW_LIMIT, MODEL_SERVO2_CCW_LIMIT, MODEL_SERVO3_CCW_LIMIT };
@@ -43,10 +51,15 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
     memset(bus, 0, sizeof *bus);
     bus->port = port;
     bus->byte_us = (10u * 1000000u + baud - 1u) / baud;   /* start + 8 data + stop bits */
+    static const uint16_t zero[SBUS_SERVOS];
     for (int i = 0; i < SBUS_SERVOS; ++i) {
-        bus->servo[i].id = bus->ids[i] = ids[i];
+        bus->servo[i].id = ids[i];
         (void)dxl_build_read(bus->read_pkt[i], sizeof bus->read_pkt[i], ids[i], SBUS_STATUS_ADDR, SBUS_STATUS_LEN);
     }
+    bus->sync_len = (uint8_t)dxl_build_sync_goal_speed(bus->sync_pkt, sizeof bus->sync_pkt, SBUS_SERVOS, ids,
+                                                       zero, zero);
+    /* with zero goals and speeds its checksum covers the constant bytes alone */
+    bus->sync_sum0 = (uint8_t)~bus->sync_pkt[SYNC_ENTRY(SBUS_SERVOS)];
     (void)dxl_parser_init(&bus->parser, bus->rx_buf, sizeof bus->rx_buf);
     enter(bus, SBUS_OFF);
 }
@@ -93,29 +106,28 @@ uint32_t sbus_tick_bus_time_us(const sbus_t *bus)
 
 /* --------------------------------------------------------------- transactions */
 
-static bool start(sbus_t *bus, size_t len, uint8_t reply, uint8_t id, uint8_t n_params)
+/* Sends the len bytes at pkt; false if len is 0 or the port cannot send now. */
+static bool send(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply)
 {
-    if (len == 0 || (size_t)DXL_STATUS_MIN_LEN + n_params > sizeof bus->direct
-        || !bus->port->servo_send(bus->port->ctx, bus->tx, len)) {
+    if (len == 0 || !bus->port->servo_send(bus->port->ctx, pkt, len)) return false;
+    bus->reply = reply;
+    bus->phase = PHASE_SENDING;   /* (a reply's wait is timed from the end of sending) */
+    return true;
+}
+
+/* Sends a request to servo s, whose status packet has n_params parameters. */
+static bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, sbus_servo_t *s, uint8_t n_params)
+{
+    if ((size_t)DXL_STATUS_MIN_LEN + n_params > sizeof bus->direct || !send(bus, pkt, len, reply)) {
         return false;   /* (a reply longer than the direct check's buffer is never requested) */
     }
-    bus->tx_len = (uint8_t)len;
-    bus->reply = reply;
-    bus->expect_id = id;
+    bus->expect_servo = s;
+    bus->expect_id = s->id;
     bus->expect_params = n_params;
     /* a reply may take the longest return delay plus its own bytes, counted from the
      * instruction's last byte */
     bus->timeout_us = RETURN_DELAY_MAX_US + (DXL_STATUS_MIN_LEN + n_params) * bus->byte_us + REPLY_MARGIN_US;
-    bus->phase = PHASE_SENDING;   /* (the reply's wait is timed from the end of sending) */
     return true;
-}
-
-static sbus_servo_t *servo_of(sbus_t *bus, uint8_t id)
-{
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
-        if (bus->servo[i].id == id) return &bus->servo[i];
-    }
-    return NULL;
 }
 
 static void note_error_byte(sbus_servo_t *s, uint8_t error)
@@ -131,13 +143,13 @@ static void note_error_byte(sbus_servo_t *s, uint8_t error)
 /* One received byte through the resynchronising parser; true when it completed the reply. */
 static bool parse_byte(sbus_t *bus, uint8_t byte)
 {
-    sbus_servo_t *s = servo_of(bus, bus->expect_id);
+    sbus_servo_t *s = bus->expect_servo;
     dxl_parse_result_t r = dxl_parse_byte(&bus->parser, byte);
-    if (r == DXL_PARSE_BAD_CHECKSUM && s != NULL) {
+    if (r == DXL_PARSE_BAD_CHECKSUM) {
         s->bad_packets++;
     } else if (r == DXL_PARSE_COMPLETE) {
         if (bus->parser.id == bus->expect_id && bus->parser.n_params == bus->expect_params) {
-            if (s != NULL) note_error_byte(s, bus->parser.error);
+            note_error_byte(s, bus->parser.error);
             bus->reply_params = bus->parser.params;
             return true;
         }
@@ -146,120 +158,113 @@ static bool parse_byte(sbus_t *bus, uint8_t byte)
     return false;
 }
 
-/* Bytes of the expected reply checked as they arrive, in locals (a byte store through bus
- * would make the compiler reload every field). Returns how many of the n bytes fit it;
- * *done when they completed it. */
-static size_t direct_bytes(sbus_t *bus, const uint8_t *b, size_t n, bool *done)
+/* Do the first n (up to 5) bytes held fit FF FF ID LEN ERR, with bit 7 of the error byte
+ * clear? */
+static inline bool head_fits(const sbus_t *bus, unsigned n)
+{
+    const uint8_t *d = bus->direct;
+    return (n < 1u || d[0] == 0xFFu) && (n < 2u || d[1] == 0xFFu) && (n < 3u || d[2] == bus->expect_id)
+        && (n < 4u || d[3] == bus->expect_params + 2u) && (n < 5u || d[4] <= 0x7Fu);
+}
+
+/* Do the n bytes held of the expected reply fit it? Its header, any parameters, and once all
+ * are there the checksum. */
+static bool direct_fits(const sbus_t *bus, unsigned n)
 {
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
-    unsigned len = bus->direct_len, sum = bus->direct_sum;
-    uint8_t *dst = bus->direct;
-    const uint8_t head[4] = { 0xFF, 0xFF, bus->expect_id, (uint8_t)(bus->expect_params + 2u) };
-    size_t i = 0;
-    *done = false;
-    while (i < n) {
-        if (len >= 5u) {
-            /* the parameters always fit; the checksum byte must make the sum 0xFF */
-            size_t k = total - 1u - len;
-            if (k > n - i) k = n - i;
-            const uint8_t *src = b + i, *end = src + k;
-            uint8_t *out = dst + len;
-            while (src < end) {
-                const uint8_t x = *src++;
-                *out++ = x;
-                sum += x;
-            }
-            i += k;
-            len += (unsigned)k;
-            if (i == n) break;
-            if (((sum + b[i]) & 0xFFu) != 0xFFu) break;
-            dst[len++] = b[i++];
-            *done = true;
-            break;
-        }
-        const uint8_t byte = b[i];
-        if (len < 4u ? byte != head[len] : byte > 0x7Fu) break;   /* (the error byte: bit 7 clear) */
-        if (len >= 2u) sum += byte;
-        dst[len++] = byte;
-        ++i;
-    }
-    bus->direct_len = (uint8_t)len;
-    bus->direct_sum = (uint8_t)sum;
-    return i;
+    if (n < total) return head_fits(bus, n);
+    /* all of it (usually at one read); with the checksum byte itself, the bytes from ID on
+     * sum to 0xFF: their checksum is 0 */
+    return head_fits(bus, 5u) && dxl_checksum(bus->direct + 2, total - 2u) == 0u;
 }
 
-/* The transaction ends with its reply. */
-static bool replied(sbus_t *bus, int *how)
+/* The len bytes received for the request, which do not fit the expected reply, through the
+ * parser, as all that follows (receive()); true when they completed the reply. Not inlined,
+ * like receive_resync(): the usual reply needs neither. */
+static __attribute__((noinline)) bool resync_direct(sbus_t *bus, unsigned len)
 {
-    bus->phase = PHASE_IDLE;
-    *how = DONE_OK;
-    return true;   /* bytes after it are dropped when the next request starts */
-}
-
-/* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
- * then needs neither its registers nor its buffer. */
-static __attribute__((noinline)) bool receive(sbus_t *bus, int *how)
-{
-    uint8_t chunk[16];
-    size_t n;
-    while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
-        size_t i = 0;
-        if (!bus->resync) {
-            /* the usual case, the expected reply alone on the wire, checked directly */
-            bool done;
-            i = direct_bytes(bus, chunk, n, &done);
-            if (done) {
-                sbus_servo_t *s = servo_of(bus, bus->expect_id);
-                if (s != NULL) note_error_byte(s, bus->direct[4]);
-                bus->reply_params = bus->direct + 5;
-                return replied(bus, how);
-            }
-            if (i < n) {
-                /* chunk[i] does not fit: the bytes so far go to the parser, then the rest */
-                bus->resync = true;
-                for (uint8_t k = 0; k < bus->direct_len; ++k) {
-                    if (parse_byte(bus, bus->direct[k])) return replied(bus, how);
-                }
-            }
-        }
-        for (; i < n; ++i) {
-            if (parse_byte(bus, chunk[i])) return replied(bus, how);
-        }
-    }
-    if (now_us(bus) - bus->phase_us > bus->timeout_us) {
-        bus->phase = PHASE_IDLE;
-        *how = bus->reply == REPLY_OPTIONAL ? DONE_OK : DONE_TIMEOUT;
-        return true;
+    bus->resync = true;
+    for (unsigned k = 0; k < len; ++k) {
+        if (parse_byte(bus, bus->direct[k])) return true;
     }
     return false;
 }
 
-/* Advances the transaction on the wire; true when it has ended, with *how. */
-static bool transaction_done(sbus_t *bus, int *how)
+/* What arrived of the expected reply, read straight into bus->direct; true when it completed
+ * it. At the first byte that does not fit, everything received for the request goes to the
+ * parser instead. */
+static bool receive_direct(sbus_t *bus)
+{
+    const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
+    size_t n;
+    while ((n = bus->port->servo_read(bus->port->ctx, bus->direct + bus->direct_len, total - bus->direct_len)) > 0) {
+        const unsigned len = bus->direct_len + (unsigned)n;
+        bus->direct_len = (uint8_t)len;
+        if (!direct_fits(bus, len)) return resync_direct(bus, len);
+        if (len == total) {
+            note_error_byte(bus->expect_servo, bus->direct[4]);
+            bus->reply_params = bus->direct + 5;
+            return true;
+        }
+    }
+    return false;
+}
+
+/* What arrived since, through the parser; true when it completed the reply. */
+static __attribute__((noinline)) bool receive_resync(sbus_t *bus)
+{
+    uint8_t chunk[16];
+    size_t n;
+    while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
+        for (size_t i = 0; i < n; ++i) {
+            if (parse_byte(bus, chunk[i])) return true;
+        }
+    }
+    return false;
+}
+
+/* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
+ * then needs none of its registers. */
+static __attribute__((noinline)) int receive(sbus_t *bus)
+{
+    /* (bytes after the reply are dropped when the next request starts) */
+    if ((!bus->resync && receive_direct(bus)) || (bus->resync && receive_resync(bus))) {
+        bus->phase = PHASE_IDLE;
+        return DONE_OK;
+    }
+    if (now_us(bus) - bus->phase_us > bus->timeout_us) {
+        bus->phase = PHASE_IDLE;
+        return bus->reply == REPLY_OPTIONAL ? DONE_OK : DONE_TIMEOUT;
+    }
+    return NOT_DONE;
+}
+
+/* Advances the transaction on the wire: has it ended, and how? (Inlined: run() calls it at
+ * every poll while a transaction is on.) */
+static inline __attribute__((always_inline)) int transaction(sbus_t *bus)
 {
     if (bus->phase == PHASE_SENDING) {
-        if (bus->port->servo_busy(bus->port->ctx)) return false;
+        if (bus->port->servo_busy(bus->port->ctx)) return NOT_DONE;
         if (bus->reply == REPLY_NONE) {
             bus->phase = PHASE_IDLE;
-            *how = DONE_OK;
-            return true;
+            return DONE_OK;
         }
         bus->phase = PHASE_AWAIT;
         bus->phase_us = now_us(bus);
     }
-    if (bus->phase != PHASE_AWAIT) return false;
-    return receive(bus, how);
+    if (bus->phase != PHASE_AWAIT) return NOT_DONE;
+    return receive(bus);
 }
 
-/* Drops whatever arrived since the last request (late replies, noise). */
-static void flush_rx(sbus_t *bus)
+/* Drops whatever arrived since the last request (late replies, noise). (Inlined: it comes
+ * before every status read.) */
+static inline __attribute__((always_inline)) void flush_rx(sbus_t *bus)
 {
     uint8_t chunk[16];
     while (bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk) > 0) {
     }
-    dxl_parser_reset(&bus->parser);
+    if (bus->resync) dxl_parser_reset(&bus->parser);   /* (only a resync feeds the parser) */
     bus->direct_len = 0;
-    bus->direct_sum = 0;
     bus->resync = false;
 }
 
@@ -311,19 +316,19 @@ static void configure(sbus_t *bus)
 {
     const int i = bus->cfg_servo;
     sbus_servo_t *s = &bus->servo[i];
-    int how;
     if (bus->phase == PHASE_IDLE) {
         flush_rx(bus);
         uint8_t step = bus->cfg_step;
         size_t len = build_config_step(bus, step, s, CW_LIMIT[i], CCW_LIMIT[i]);
         if (step == CFG_VERIFY) {
-            (void)start(bus, len, REPLY_REQUIRED, s->id, SBUS_VERIFY_LEN);
+            (void)request(bus, bus->tx, len, REPLY_REQUIRED, s, SBUS_VERIFY_LEN);
         } else {
-            (void)start(bus, len, REPLY_OPTIONAL, s->id, 0);
+            (void)request(bus, bus->tx, len, REPLY_OPTIONAL, s, 0);
         }
         return;
     }
-    if (!transaction_done(bus, &how)) return;
+    const int how = transaction(bus);
+    if (how == NOT_DONE) return;
     if (bus->cfg_step < CFG_VERIFY) {
         bus->cfg_step++;
         return;
@@ -358,14 +363,37 @@ static void take_status(sbus_servo_t *s, const uint8_t *p)
     s->reads++;
 }
 
+/* The queued goals and speeds into the SYNC_WRITE; its length, or 0 when a value is out of
+ * range (the servo would answer a range error nobody hears) or the ids cannot be sent. */
+static size_t sync_fill(sbus_t *bus)
+{
+    unsigned goals = 0, speeds = 0, sum = bus->sync_sum0;
+    uint8_t *e = bus->sync_pkt + SYNC_ENTRY(0);
+    for (int i = 0; i < SBUS_SERVOS; ++i, e += 5) {
+        const uint32_t g = bus->goal[i], v = bus->speed[i];
+        const uint32_t w = g | v << 16;   /* the entry's goal and speed bytes, first at bits 0..7 */
+        goals |= g;
+        speeds |= v;
+        e[1] = (uint8_t)w;
+        e[2] = (uint8_t)(w >> 8);
+        e[3] = (uint8_t)(w >> 16);
+        e[4] = (uint8_t)(w >> 24);
+        sum += w + (w >> 8) + (w >> 16) + (w >> 24);   /* mod 256, the sum of those 4 bytes */
+    }
+    *e = (uint8_t)~sum;
+    /* (a packet with a value out of range is never sent: the next command rewrites it) */
+    return goals > DXL_AX_POSITION_MAX || speeds > DXL_AX_SPEED_MAX ? 0 : bus->sync_len;
+}
+
 static void run(sbus_t *bus)
 {
-    int how;
     if (bus->phase != PHASE_IDLE) {
-        if (!transaction_done(bus, &how) || bus->reply == REPLY_NONE) return;
+        const int how = transaction(bus);
+        if (how == NOT_DONE || bus->reply == REPLY_NONE) return;
         sbus_servo_t *s = &bus->servo[bus->read_index];
         if (how == DONE_OK) {
             take_status(s, bus->reply_params);
+            bus->status_reads++;
         } else {
             s->timeouts++;
             if (bus->read_attempt < SBUS_READ_RETRIES) {
@@ -380,17 +408,15 @@ static void run(sbus_t *bus)
         return;
     }
     if (bus->command_pending) {
-        size_t len = dxl_build_sync_goal_speed(bus->tx, sizeof bus->tx, SBUS_SERVOS, bus->ids, bus->goal, bus->speed);
-        if (start(bus, len, REPLY_NONE, 0, 0)) {
+        if (send(bus, bus->sync_pkt, sync_fill(bus), REPLY_NONE)) {
             bus->command_pending = false;
             bus->read_due = true;
             bus->sync_writes++;
         }
     } else if (bus->read_due) {
         flush_rx(bus);
-        const sbus_servo_t *s = &bus->servo[bus->read_index];
-        memcpy(bus->tx, bus->read_pkt[bus->read_index], sizeof bus->read_pkt[0]);
-        if (start(bus, sizeof bus->read_pkt[0], REPLY_REQUIRED, s->id, SBUS_STATUS_LEN)) {
+        const unsigned i = bus->read_index;
+        if (request(bus, bus->read_pkt[i], sizeof bus->read_pkt[i], REPLY_REQUIRED, &bus->servo[i], SBUS_STATUS_LEN)) {
             bus->read_due = false;
         }
     }

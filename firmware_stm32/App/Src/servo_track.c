@@ -22,13 +22,24 @@ static bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal, uint16_t
     if (abs32(error) <= TRACK_TOL_UNITS) return true;
     const int32_t left = (int32_t)goal - (int32_t)w->last_position;
     const int32_t moved = ((int32_t)pos - (int32_t)w->last_position) * (left < 0 ? -1 : 1);
+    if (moved <= 0) return false;   /* (no progress at all: the float part is not needed) */
     const float allowed = (float)(speed & 0x3FFu) * MODEL_UNITS_PER_S_PER_SPEED * ((float)dt_us * 1e-6f);
     const float wanted = (float)abs32(left) < allowed ? (float)abs32(left) : allowed;
-    return moved > 0 && (float)moved >= TRACK_MIN_PROGRESS * wanted;
+    return (float)moved >= TRACK_MIN_PROGRESS * wanted;
 }
 
-void track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
+bool track_fault(const track_t *t)
 {
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        if (t->servo[i].fault) return true;
+    }
+    return false;
+}
+
+/* Each servo's readings since the last look. */
+static void look_at_readings(track_t *t, const sbus_t *bus, uint32_t now_us)
+{
+    t->status_reads_seen = bus->status_reads;
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         track_servo_t *w = &t->servo[i];
         const sbus_servo_t *s = &bus->servo[i];
@@ -50,10 +61,9 @@ void track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
     }
 }
 
-bool track_fault(const track_t *t)
+bool track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
 {
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
-        if (t->servo[i].fault) return true;
-    }
-    return false;
+    /* (the driver's count of all readings says whether there is any to look at) */
+    if (bus->status_reads != t->status_reads_seen) look_at_readings(t, bus, now_us);
+    return track_fault(t);
 }
