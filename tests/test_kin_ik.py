@@ -180,17 +180,28 @@ def test_nearest_first_solver_selects_as_kin_ik(model, gen):
     q_nows = np.concatenate([rng.uniform(lo, hi, size=(len(targets) - 4, 3)),
                              [(float("nan"), 0.0, 0.0), (float("inf"), 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)]])
     out, p, qn, q_out = ffi.new("kin_ik_t *"), ffi.new("float[3]"), ffi.new("float[3]"), ffi.new("float[3]")
-    selected = 0
+    selected = ties = 0
+
+    def distance(q, q_now):   # as kin_ik computes it, in float32
+        d = [np.float32(q[j]) - np.float32(q_now[j]) for j in range(3)]
+        return d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+
     for target, q_now in zip(targets, q_nows):
         # and again from each valid candidate, and from a point between the first two
         p[0:3] = [float(v) for v in target]
         qn[0:3] = [float(v) for v in q_now]
         lib.kin_ik(p, qn, out)
-        starts = [q_now] + [list(out.q[i]) for i in range(4) if out.status[i] == OK]
+        valid = [i for i in range(4) if out.status[i] == OK]
+        starts = [q_now] + [list(out.q[i]) for i in valid]
         starts.append([(out.q[0][j] + out.q[1][j]) / 2 for j in range(3)])
+        # halfway between two valid candidates: often an exact tie, which goes to the lower index
+        starts += [[float(np.float32((out.q[i][j] + out.q[k][j]) / 2)) for j in range(3)]
+                   for i in valid for k in valid if i < k]
         for start in starts:
             qn[0:3] = [float(v) for v in start]
             sel = lib.kin_ik(p, qn, out)
+            ties += sel >= 0 and sum(distance(out.q[i], start) == distance(out.q[sel], start)
+                                     for i in range(4) if out.status[i] == OK) > 1
             q_out[0:3] = [-7.0, -7.0, -7.0]
             status = lib.kin_ik_nearest(p, qn, q_out)
             if sel >= 0:
@@ -202,3 +213,5 @@ def test_nearest_first_solver_selects_as_kin_ik(model, gen):
                 assert status == (refused[0] if refused else UNREACHABLE), (target, list(out.status))
                 assert list(q_out) == [-7.0, -7.0, -7.0]
     assert selected > 5000
+    print(f"\n{selected} selections compared, {ties} of them with an exact tie")
+    assert ties > 1000, ties      # exact ties were exercised
