@@ -98,7 +98,7 @@ def kinematics_context(m: config.Model):
         "check_limits": _function([("const bool limits_ok", limits)], q, Q),
         "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q, bounded=True),
         "ik": {"lines": temps + assigns, "ops": op_count(ik_exprs)},
-        "nearest": _ik_nearest(ikm, checks_of, t),
+        "nearest": _ik_nearest(m, ikm, checks_of, t),
         "dh": kinematics.dh_rows(m),
         "target_bound": float32_literal(2 * (m.L1 + m.L2 + m.L3)),
         "limits": [(float32_literal(l.min_rad), float32_literal(l.max_rad)) for l in m.limits],
@@ -111,7 +111,7 @@ def _finite_atan2(lines):
     return [line.replace("fm_atan2f(", "fm_atan2f_finite(") for line in lines]
 
 
-def _ik_nearest(ikm, checks_of, target_symbols):
+def _ik_nearest(m, ikm, checks_of, target_symbols):
     """kin_ik_nearest: the candidates' angles up front, then each candidate's checks on their
     own, one check after the other, so that the C can test the candidates nearest first and
     stop at the first valid one. One CSE over everything names the shared terms; each
@@ -144,6 +144,8 @@ def _ik_nearest(ikm, checks_of, target_symbols):
         have, steps = set(have_upfront), []
         for k, why in enumerate(("KIN_JOINT_LIMIT", "KIN_BODY", "KIN_LEG")):   # checks_of's order
             cond = reduced[n_angles + 3 * i + k]
+            if k == 0:   # the limits again on the named angles: |t| <= L for a symmetric one
+                cond = kinematics.joint_limits_ok(m, reduced[1 + 3 * i: 4 + 3 * i])
             temps = closure([cond], have)
             have |= {sym for sym, _ in temps}
             steps.append({"lines": lines(temps), "ok": c(cond), "why": why})

@@ -129,9 +129,9 @@ def ik(m: Model) -> IkModel:
 def joint_limits_ok(m: Model, q) -> sp.Boolean:
     conds = []
     for qi, lim in zip(q, m.limits):
-        # one comparison instead of two in the generated C; only for a plain symbol, as SymPy
+        # one comparison instead of two in the generated C; not for an atan2, as SymPy
         # rewrites |-atan2(a, b)| into a new atan2 that CSE would not share with the angle
-        if lim.min_deg == -lim.max_deg and isinstance(qi, sp.Symbol):
+        if lim.min_deg == -lim.max_deg and not sp.sympify(qi).has(sp.atan2):
             conds.append(sp.Abs(qi) <= sp.Float(lim.max_rad, 30))
         else:
             conds += [qi >= sp.Float(lim.min_rad, 30), qi <= sp.Float(lim.max_rad, 30)]
