@@ -83,7 +83,9 @@ static void led(void *ctx, uint8_t index, bool on) { (void)ctx; (void)index; (vo
 static bool imu_read(void *ctx, uint8_t addr, uint8_t reg, uint8_t *buf, size_t n)
 {
     (void)ctx; (void)addr;
-    memcpy(buf, imu_regs + reg, n);   /* the STM32 port reads by DMA */
+    /* (the STM32 port's blocking HAL read then waits ~0.4 ms on the I2C bus: wire time, not
+     * the firmware's work, and not counted here) */
+    memcpy(buf, imu_regs + reg, n);
     return true;
 }
 static bool imu_write(void *ctx, uint8_t addr, uint8_t reg, uint8_t value)
