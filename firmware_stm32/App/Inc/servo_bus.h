@@ -115,6 +115,7 @@ typedef struct {
     uint32_t sync_writes;
     uint32_t stray_packets;
     uint32_t status_reads;              /* readings taken, of all servos (wraps) */
+    uint8_t last_read;                  /* the servo of the latest reading */
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */

@@ -394,6 +394,7 @@ static void run(sbus_t *bus)
         if (how == DONE_OK) {
             take_status(s, bus->reply_params);
             bus->status_reads++;
+            bus->last_read = bus->read_index;
         } else {
             s->timeouts++;
             if (bus->read_attempt < SBUS_READ_RETRIES) {
