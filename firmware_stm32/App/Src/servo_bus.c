@@ -190,7 +190,7 @@ static inline uint8_t status_sum(const uint8_t *p)
 
 /* Do the n bytes held of the expected reply fit it? Its header, any parameters, and once all
  * are there the checksum. */
-static bool direct_fits(const sbus_t *bus, unsigned n)
+static inline __attribute__((always_inline)) bool direct_fits(const sbus_t *bus, unsigned n)
 {
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
     if (n < total) return head_fits(bus, n);
@@ -218,7 +218,7 @@ static __attribute__((noinline)) bool resync_direct(sbus_t *bus, unsigned len)
 /* What arrived of the expected reply, read straight into bus->direct; true when it completed
  * it. At the first byte that does not fit, everything received for the request goes to the
  * parser instead. */
-static bool receive_direct(sbus_t *bus)
+static inline __attribute__((always_inline)) bool receive_direct(sbus_t *bus)
 {
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
     size_t n;
@@ -248,9 +248,9 @@ static __attribute__((noinline)) bool receive_resync(sbus_t *bus)
     return false;
 }
 
-/* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
- * then needs none of its registers. */
-static __attribute__((noinline)) int receive(sbus_t *bus)
+/* The reply so far, or the timeout. (Inlined, with receive_direct() and direct_fits():
+ * sbus_poll() saves no more registers for it, and the usual reply then costs no calls.) */
+static inline __attribute__((always_inline)) int receive(sbus_t *bus)
 {
     /* (bytes after the reply are dropped when the next request starts) */
     if ((!bus->resync && receive_direct(bus)) || (bus->resync && receive_resync(bus))) {
