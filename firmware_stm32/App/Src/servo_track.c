@@ -16,7 +16,8 @@ static int32_t abs32(int32_t v)
 }
 
 /* One new reading of a servo at `pos` that was sent `goal` at `speed`. */
-static inline __attribute__((always_inline)) bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal, uint16_t speed, uint32_t dt_us)
+static inline __attribute__((always_inline)) bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal,
+                                                        uint16_t speed, uint32_t dt_us)
 {
     const int32_t error = (int32_t)goal - (int32_t)pos;
     if (abs32(error) <= TRACK_TOL_UNITS) return true;
