@@ -87,6 +87,7 @@ typedef struct {
     uint8_t reply;                 /* none, optional, required */
     uint8_t expect_id;
     uint8_t expect_params;
+    uint8_t expect_head[4];        /* its reply's first bytes: FF FF ID LEN */
     sbus_servo_t *expect_servo;    /* the servo asked (its id is expect_id) */
     uint32_t phase_us;
     uint32_t timeout_us;
@@ -115,6 +116,7 @@ typedef struct {
     uint32_t sync_writes;
     uint32_t stray_packets;
     uint32_t status_reads;              /* readings taken, of all servos (wraps) */
+    uint8_t last_read;                  /* the servo of the latest reading */
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */

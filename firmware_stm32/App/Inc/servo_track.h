@@ -42,6 +42,8 @@ typedef struct {
 typedef struct {
     track_servo_t servo[SBUS_SERVOS];
     uint32_t status_reads_seen;    /* the driver's count of all readings when last looked at */
+    bool synced;                   /* each reads_seen is its servo's count as of status_reads_seen
+                                      (not after track_reset(): the driver's counts go on) */
 } track_t;
 
 void track_reset(track_t *t);

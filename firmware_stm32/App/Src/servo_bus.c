@@ -124,6 +124,9 @@ static bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, 
     bus->expect_servo = s;
     bus->expect_id = s->id;
     bus->expect_params = n_params;
+    bus->expect_head[0] = bus->expect_head[1] = 0xFFu;
+    bus->expect_head[2] = s->id;
+    bus->expect_head[3] = (uint8_t)(n_params + 2u);
     /* a reply may take the longest return delay plus its own bytes, counted from the
      * instruction's last byte */
     bus->timeout_us = RETURN_DELAY_MAX_US + (DXL_STATUS_MIN_LEN + n_params) * bus->byte_us + REPLY_MARGIN_US;
@@ -167,15 +170,37 @@ static inline bool head_fits(const sbus_t *bus, unsigned n)
         && (n < 4u || d[3] == bus->expect_params + 2u) && (n < 5u || d[4] <= 0x7Fu);
 }
 
+static inline uint32_t word_at(const uint8_t *p)
+{
+    uint32_t w;
+    memcpy(&w, p, sizeof w);   /* (one unaligned load on the M4) */
+    return w;
+}
+
+/* The sum, mod 256, of the status reply's 12 bytes from ID on, written out for the usual
+ * reply (dxl_checksum()'s loop and call cost more than the sum): three whole words, whose
+ * bytes sum to the low byte of each word plus its shifts by 8, 16 and 24. */
+typedef char status_is_twelve_bytes_from_id[DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN - 2 == 12 ? 1 : -1];
+static inline uint8_t status_sum(const uint8_t *p)
+{
+    const uint32_t a = word_at(p), b = word_at(p + 4), c = word_at(p + 8);
+    return (uint8_t)(a + (a >> 8) + (a >> 16) + (a >> 24) + b + (b >> 8) + (b >> 16) + (b >> 24)
+                     + c + (c >> 8) + (c >> 16) + (c >> 24));
+}
+
 /* Do the n bytes held of the expected reply fit it? Its header, any parameters, and once all
  * are there the checksum. */
-static bool direct_fits(const sbus_t *bus, unsigned n)
+static inline __attribute__((always_inline)) bool direct_fits(const sbus_t *bus, unsigned n)
 {
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
     if (n < total) return head_fits(bus, n);
-    /* all of it (usually at one read); with the checksum byte itself, the bytes from ID on
-     * sum to 0xFF: their checksum is 0 */
-    return head_fits(bus, 5u) && dxl_checksum(bus->direct + 2, total - 2u) == 0u;
+    /* all of it (usually at one read): FF FF ID LEN compared as one word; with the checksum
+     * byte itself, the bytes from ID on sum to 0xFF: their checksum is 0 */
+    if (word_at(bus->direct) != word_at(bus->expect_head) || bus->direct[4] > 0x7Fu) {
+        return false;
+    }
+    if (total == DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN) return status_sum(bus->direct + 2) == 0xFFu;
+    return dxl_checksum(bus->direct + 2, total - 2u) == 0u;
 }
 
 /* The len bytes received for the request, which do not fit the expected reply, through the
@@ -193,7 +218,7 @@ static __attribute__((noinline)) bool resync_direct(sbus_t *bus, unsigned len)
 /* What arrived of the expected reply, read straight into bus->direct; true when it completed
  * it. At the first byte that does not fit, everything received for the request goes to the
  * parser instead. */
-static bool receive_direct(sbus_t *bus)
+static inline __attribute__((always_inline)) bool receive_direct(sbus_t *bus)
 {
     const unsigned total = DXL_STATUS_MIN_LEN + bus->expect_params;
     size_t n;
@@ -223,9 +248,9 @@ static __attribute__((noinline)) bool receive_resync(sbus_t *bus)
     return false;
 }
 
-/* The reply so far, or the timeout. Not inlined: the sending phase, polled most often,
- * then needs none of its registers. */
-static __attribute__((noinline)) int receive(sbus_t *bus)
+/* The reply so far, or the timeout. (Inlined, with receive_direct() and direct_fits():
+ * sbus_poll() saves no more registers for it, and the usual reply then costs no calls.) */
+static inline __attribute__((always_inline)) int receive(sbus_t *bus)
 {
     /* (bytes after the reply are dropped when the next request starts) */
     if ((!bus->resync && receive_direct(bus)) || (bus->resync && receive_resync(bus))) {
@@ -394,6 +419,7 @@ static void run(sbus_t *bus)
         if (how == DONE_OK) {
             take_status(s, bus->reply_params);
             bus->status_reads++;
+            bus->last_read = bus->read_index;
         } else {
             s->timeouts++;
             if (bus->read_attempt < SBUS_READ_RETRIES) {

@@ -16,7 +16,8 @@ static int32_t abs32(int32_t v)
 }
 
 /* One new reading of a servo at `pos` that was sent `goal` at `speed`. */
-static bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal, uint16_t speed, uint32_t dt_us)
+static inline __attribute__((always_inline)) bool tracks(const track_servo_t *w, uint16_t pos, uint16_t goal,
+                                                        uint16_t speed, uint32_t dt_us)
 {
     const int32_t error = (int32_t)goal - (int32_t)pos;
     if (abs32(error) <= TRACK_TOL_UNITS) return true;
@@ -36,34 +37,46 @@ bool track_fault(const track_t *t)
     return false;
 }
 
-/* Each servo's readings since the last look. */
-static void look_at_readings(track_t *t, const sbus_t *bus, uint32_t now_us)
+/* Servo i's new reading, if it has one. (Inlined into both paths of track_update().) */
+static inline __attribute__((always_inline)) void look_at_servo(track_t *t, const sbus_t *bus, int i, uint32_t now_us)
 {
-    t->status_reads_seen = bus->status_reads;
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
-        track_servo_t *w = &t->servo[i];
-        const sbus_servo_t *s = &bus->servo[i];
-        if (s->reads == w->reads_seen) continue;
-        w->reads_seen = s->reads;
-        const uint32_t dt_us = now_us - w->last_us;
-        if (w->have_last) {
-            if (tracks(w, s->present_position, bus->goal[i], bus->speed[i], dt_us)) {
-                w->bad_us = 0;
-                w->fault = false;
-            } else {
-                w->bad_us = w->bad_us + dt_us < w->bad_us ? UINT32_MAX : w->bad_us + dt_us;
-                w->fault = w->bad_us >= TRACK_FAULT_US;
-            }
+    track_servo_t *w = &t->servo[i];
+    const sbus_servo_t *s = &bus->servo[i];
+    if (s->reads == w->reads_seen) return;
+    w->reads_seen = s->reads;
+    const uint32_t dt_us = now_us - w->last_us;
+    if (w->have_last) {
+        if (tracks(w, s->present_position, bus->goal[i], bus->speed[i], dt_us)) {
+            w->bad_us = 0;
+            w->fault = false;
+        } else {
+            w->bad_us = w->bad_us + dt_us < w->bad_us ? UINT32_MAX : w->bad_us + dt_us;
+            w->fault = w->bad_us >= TRACK_FAULT_US;
         }
-        w->last_position = s->present_position;
-        w->last_us = now_us;
-        w->have_last = true;
     }
+    w->last_position = s->present_position;
+    w->last_us = now_us;
+    w->have_last = true;
+}
+
+/* Each servo's readings since the last look. (Not inlined: the usual tick needs one servo.) */
+static __attribute__((noinline)) void look_at_readings(track_t *t, const sbus_t *bus, uint32_t now_us)
+{
+    for (int i = 0; i < SBUS_SERVOS; ++i) look_at_servo(t, bus, i, now_us);
+    t->synced = true;
 }
 
 bool track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
 {
     /* (the driver's count of all readings says whether there is any to look at) */
-    if (bus->status_reads != t->status_reads_seen) look_at_readings(t, bus, now_us);
+    const uint32_t new_reads = bus->status_reads - t->status_reads_seen;
+    t->status_reads_seen = bus->status_reads;
+    if (new_reads == 1u && t->synced) {
+        /* the usual tick: one reading, so only the servo the driver read last has moved on
+         * from the counts seen */
+        look_at_servo(t, bus, bus->last_read, now_us);
+    } else if (new_reads != 0u) {
+        look_at_readings(t, bus, now_us);
+    }
     return track_fault(t);
 }
