@@ -315,16 +315,25 @@ def test_bus_echo_is_ignored():
     assert [round(u) for u in [board.bus.servo(i).position for i in IDS]] == goal
 
 
-def test_corrupted_replies_are_counted_and_survived():
+# A parameter byte changed (the checksum no longer fits), or the checksum byte itself off by
+# one either way or by its top bit: Protocol 1.0's checksum, ~(ID + LEN + ERR + params), no
+# longer matches in any of them.
+CORRUPTIONS = {"parameter": (5, lambda b: b ^ 0x40), "checksum + 1": (-1, lambda b: (b + 1) & 0xFF),
+               "checksum - 1": (-1, lambda b: (b - 1) & 0xFF), "checksum top bit": (-1, lambda b: b ^ 0x80)}
+
+
+@pytest.mark.parametrize("how", CORRUPTIONS)
+def test_corrupted_replies_are_counted_and_survived(how):
     board, log = enabled_board()
     bus = board.bus
     send_reply = bus._send_reply
     corrupted = []
+    where, change = CORRUPTIONS[how]
 
     def corrupt(start, data):
         if data[2] == IDS[0] and len(corrupted) < 4:
             data = bytearray(data)
-            data[5] ^= 0x40                 # a parameter byte: the checksum no longer fits
+            data[where] = change(data[where])
             corrupted.append(bytes(data))
         return send_reply(start, bytes(data))
 
