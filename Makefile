@@ -31,13 +31,13 @@ sim-report: $(STAMP)
 fuzz: $(STAMP)
 	$(PY) fuzz/run.py --time 20 --jobs 2
 
-# The long run of the README's figures: 10 million inputs of each C harness (the whole
-# application on both cores, 5 million each: about an hour on an idle 2-core machine), and
-# one hour of the model loader (~380 inputs/s: 10 million would take 7 to 8 hours).
+# The long run of the README's figures: 10 million inputs of each harness; the whole
+# application and the model loader on both cores, 5 million each (about two hours in all
+# on an idle 2-core machine).
 fuzz-long: $(STAMP)
 	$(PY) fuzz/run.py --runs 10000000 llcp_rx dxl_parser
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 app_link
-	$(PY) fuzz/run.py --time 3600 model_loader
+	$(PY) fuzz/run.py --runs 5000000 --workers 2 model_loader
 
 clean:
 	rm -rf build
