@@ -115,10 +115,10 @@ def whole_tick(m):
     incs = [f"-I{d}" for d in (generated.GENERATED, app / "Inc")]
     gen = m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
     ref = m4.build([str(BENCH / "reference.c")], ["ref_run"], cflags=target.M4_CFLAGS + target.reference_defines(m))
-    raw = tilting_imu(m)
+    raw = tilting_imu(m, N_TICKS + 1)   # the firmware's warm-up tick on the first sample, then N_TICKS
     idle = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(0)], ret="int")
     run = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(1)], ret="int")
-    base = ref.call("ref_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.Arr("float", [60.0, 20.0, -120.0]),
+    base = ref.call("ref_run", [m4.Arr("int32", raw[6:]), m4.U32(N_TICKS), m4.Arr("float", [60.0, 20.0, -120.0]),
                                 m4.Arr("uint32", 3)], ret="int")
     if not (idle.ret and run.ret and base.ret):
         raise SystemExit("tick bench: a run did not complete (engaged, all commands sent)")

@@ -122,29 +122,38 @@ static int setup(void)
     return app.engaged;
 }
 
-/* raw: n samples of accel x, y, z and gyro x, y, z counts. ticks = 0 runs the same main-loop
- * passes without requesting ticks: the idle cost, which bench/run.py subtracts. */
+/* One tick period: the IMU sample (accel x, y, z and gyro x, y, z counts) in the chip's
+ * registers, the tick requested or not, and four main-loop passes. */
+static void period(const int32_t *sample, bool request)
+{
+    for (int i = 0; i < 3; ++i) {
+        const uint16_t a = (uint16_t)sample[i], g = (uint16_t)sample[3 + i];
+        imu_regs[MPU_REG_ACCEL_XOUT_H + 2 * i] = (uint8_t)(a >> 8);
+        imu_regs[MPU_REG_ACCEL_XOUT_H + 2 * i + 1] = (uint8_t)a;
+        imu_regs[MPU_REG_ACCEL_XOUT_H + 8 + 2 * i] = (uint8_t)(g >> 8);
+        imu_regs[MPU_REG_ACCEL_XOUT_H + 9 + 2 * i] = (uint8_t)g;
+    }
+    imu_regs[MPU_REG_INT_STATUS] = MPU_INT_DATA_RDY;   /* a new sample, as the chip flags it */
+    now += MODEL_TICK_US;
+    if (request) app_request_tick(&app);
+    app_poll(&app);   /* the tick: IMU, stabiliser, IK, command; SYNC_WRITE out */
+    app_poll(&app);   /* SYNC_WRITE sent (no reply) */
+    app_poll(&app);   /* status READ out */
+    app_poll(&app);   /* its reply parsed */
+}
+
+/* raw: n + 1 samples. One tick first, in both runs: the first sample after a reset sets the
+ * filters and the attitude at rest on it, once, not at every tick. Then n periods, with
+ * ticks or (ticks = 0) the same main-loop passes without: the idle cost, which bench/run.py
+ * subtracts. */
 int bench_run(const int32_t *raw, uint32_t n, uint32_t ticks)
 {
     int ok = setup();
-    for (uint32_t k = 0; k < n; ++k) {
-        for (int i = 0; i < 3; ++i) {
-            const uint16_t a = (uint16_t)raw[6 * k + i], g = (uint16_t)raw[6 * k + 3 + i];
-            imu_regs[MPU_REG_ACCEL_XOUT_H + 2 * i] = (uint8_t)(a >> 8);
-            imu_regs[MPU_REG_ACCEL_XOUT_H + 2 * i + 1] = (uint8_t)a;
-            imu_regs[MPU_REG_ACCEL_XOUT_H + 8 + 2 * i] = (uint8_t)(g >> 8);
-            imu_regs[MPU_REG_ACCEL_XOUT_H + 9 + 2 * i] = (uint8_t)g;
-        }
-        imu_regs[MPU_REG_INT_STATUS] = MPU_INT_DATA_RDY;   /* a new sample, as the chip flags it */
-        now += MODEL_TICK_US;
-        if (ticks) app_request_tick(&app);
-        app_poll(&app);   /* the tick: IMU, stabiliser, IK, command; SYNC_WRITE out */
-        app_poll(&app);   /* SYNC_WRITE sent (no reply) */
-        app_poll(&app);   /* status READ out */
-        app_poll(&app);   /* its reply parsed */
-    }
+    period(raw, true);
+    for (uint32_t k = 1; k <= n; ++k) period(raw + 6 * k, ticks != 0);
     /* still engaged, and every tick had its SYNC_WRITE and its status reading, as on the
      * board, whose main loop runs many passes per tick: the ticks measured were the
      * stabilising path with all of its bus traffic, not a parked arm */
-    return ok && app.engaged && app.bus.sync_writes == (ticks ? n : 0) && app.bus.status_reads == (ticks ? n : 0);
+    const uint32_t expected = 1u + (ticks ? n : 0u);
+    return ok && app.engaged && app.bus.sync_writes == expected && app.bus.status_reads == expected;
 }
