@@ -2,7 +2,7 @@
 emulated Cortex-M4F and reports a run complete only if the arm stayed engaged and every tick
 had its SYNC_WRITE and its status reading. No cycle count is asserted (figures come from
 `make bench`), only that a tick costs something and that a parked run is refused."""
-import sys
+import importlib.util
 
 import pytest
 
@@ -10,8 +10,9 @@ from conftest import ROOT, require_arm_toolchain
 from uavarm import firmware, generated, target
 from uavarm.model import config
 
-sys.path.insert(0, str(ROOT / "bench"))
-import run as bench  # noqa: E402  (bench/run.py)
+_spec = importlib.util.spec_from_file_location("bench_run_py", ROOT / "bench" / "run.py")
+bench = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(bench)
 
 N = 3
 
