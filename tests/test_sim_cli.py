@@ -1,10 +1,12 @@
 """`uavarm sim`, `uavarm workspace` and the report's entry point, from the shell's side."""
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
-from uavarm import cli, sim_report, workspace
+from uavarm import cli, scenarios, sim_report, workspace
 from uavarm.model import config
 
 
@@ -38,6 +40,20 @@ def test_exported_flight_log_replays(tmp_path, capsys):
     capsys.readouterr()
     assert cli.main(["sim", str(tmp_path / "replay.toml"), "--seconds", "1", "--settle", "1", "--plots", ""]) == 0
     assert "replay" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("name", sorted(scenarios.BUILTIN))
+def test_show_prints_a_scenario_file_that_loads_as_the_scenario(name, tmp_path, capsys):
+    assert cli.main(["sim", name, "--show", "--imu", "datasheet"]) == 0
+    path = tmp_path / f"{name}.toml"
+    path.write_text(capsys.readouterr().out)
+    want = replace(scenarios.load(name), imu_profile="datasheet")
+    assert replace(scenarios.load(path), base_dir=None) == want
+
+
+def test_show_refuses_an_unknown_scenario(capsys):
+    assert cli.main(["sim", "nowhere.toml", "--show"]) == 2
+    assert "not a built-in scenario" in capsys.readouterr().err
 
 
 def test_sim_rejects_nonsense_durations(capsys):

@@ -85,6 +85,8 @@ def main(argv=None) -> int:
     st.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
     sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/scenarios.py)")
+    sm.add_argument("--show", action="store_true",
+                    help="print the scenario as a scenario file (with --imu applied) and run nothing")
     sm.add_argument("--estimator", default=None,
                     help="estimator preset: complementary, quaternion, link (default: the model file as it is)")
     sm.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",

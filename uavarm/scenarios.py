@@ -1,6 +1,6 @@
 """Drone-motion scenarios of the closed-loop simulator, built in or from a scenario file.
 
-A scenario file is TOML (the built-in ones are the same tables, `uavarm sim --show NAME`
+A scenario file is TOML (the built-in ones are the same tables, `uavarm sim NAME --show`
 prints them):
 
     name = "gusty hover"

@@ -213,6 +213,9 @@ def sim_command(args) -> int:
         scenario = scenarios.load(args.scenario)
         if args.imu:
             scenario = replace(scenario, imu_profile=args.imu)
+        if args.show:   # a starting point for a scenario file of one's own
+            print(scenarios.dump(scenario), end="")
+            return 0
         changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
     except (variants.VariantError, scenarios.ScenarioError) as exc:
         print(f"error: {exc}", file=sys.stderr)
