@@ -107,13 +107,17 @@ def tilting_imu(m, n=N_TICKS):
     return raw
 
 
+def tick_bench_build(m4):
+    """bench/tick_bench.c with every application and generated source, for m4count."""
+    sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
+    incs = [f"-I{d}" for d in (generated.GENERATED, firmware.APP / "Inc")]
+    return m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
+
+
 def whole_tick(m):
     """The firmware's whole tick (bench/tick_bench.c) against the plain reference tick."""
     m4 = target.m4count()
-    app = firmware.APP
-    sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
-    incs = [f"-I{d}" for d in (generated.GENERATED, app / "Inc")]
-    gen = m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
+    gen = tick_bench_build(m4)
     ref = m4.build([str(BENCH / "reference.c")], ["ref_run"], cflags=target.M4_CFLAGS + target.reference_defines(m))
     raw = tilting_imu(m, N_TICKS + 1)   # the firmware's warm-up tick on the first sample, then N_TICKS
     idle = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(0)], ret="int")

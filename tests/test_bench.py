@@ -7,7 +7,7 @@ import importlib.util
 import pytest
 
 from conftest import ROOT, require_arm_toolchain
-from uavarm import firmware, generated, target
+from uavarm import firmware, target
 from uavarm.model import config
 
 _spec = importlib.util.spec_from_file_location("bench_run_py", ROOT / "bench" / "run.py")
@@ -21,9 +21,7 @@ N = 3
 def tick_build():
     require_arm_toolchain()
     m4 = target.m4count()
-    sources = [str(s) for s in firmware.app_sources()] + [str(bench.BENCH / "tick_bench.c")]
-    incs = [f"-I{d}" for d in (generated.GENERATED, firmware.APP / "Inc")]
-    return m4, m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
+    return m4, bench.tick_bench_build(m4)
 
 
 def run(tick_build, raw, ticks, n=N):
@@ -41,9 +39,10 @@ def test_ticks_run_engaged_with_all_their_bus_traffic(tick_build):
 
 
 def test_a_run_that_parked_is_refused(tick_build):
-    """Samples at full scale are unusable (saturated): after APP_IMU_STALE_TICKS (5) of them
-    the arm parks, and the bench must not report those ticks as the stabilising path."""
-    n = 6
+    """Samples at full scale are unusable (saturated): after APP_IMU_STALE_TICKS of them the
+    arm parks, and the bench must not report those ticks as the stabilising path."""
+    _, lib = firmware.default()
+    n = lib.APP_IMU_STALE_TICKS + 1
     raw = bench.tilting_imu(config.load(), n + 1)
     saturated = raw[:6] + [32767] * (6 * n)
     assert run(tick_build, raw, 1, n).ret == 1
