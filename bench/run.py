@@ -16,6 +16,9 @@ from uavarm import cbuild, firmware, generated, target
 from uavarm.board import SimBoard
 from uavarm.model import config
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import motion  # noqa: E402  (bench/motion.py)
+
 BENCH = Path(__file__).resolve().parent
 N_INPUTS = 50
 
@@ -51,7 +54,7 @@ def main() -> int:
     m4 = target.m4count()
     gen_dir = generated.GENERATED
     gen = m4.build([str(s) for s in generated.sources()],
-                   ["kin_fk_ee", "kin_ik", "kin_ik_nearest", "filt_accel_step", "filt_gyro_step"],
+                   ["kin_fk_ee", "kin_ik", "kin_ik_nearest", "kin_ik_branch", "filt_accel_step", "filt_gyro_step"],
                    cflags=target.M4_CFLAGS + [f"-I{gen_dir}"])
     ref = m4.build([str(BENCH / "reference.c")], ["ref_fk", "ref_ik", "ref_biquad_step"],
                    cflags=target.M4_CFLAGS + target.reference_defines(m))
@@ -65,8 +68,12 @@ def main() -> int:
         ("IK: 4 candidates + checks + select",
          measure(gen, "kin_ik", [[("float", p), zero_q, ("uint32", 14)] for p in targets], "int"),
          measure(ref, "ref_ik", [[("float", p), zero_q, ("float", 3)] for p in targets], "int")),
-        ("IK as the firmware runs it: nearest candidate first, stop at the first valid",
+        ("IK for a new set position: nearest candidate first, stop at the first valid",
          measure(gen, "kin_ik_nearest", [[("float", p), zero_q, ("float", 3)] for p in targets], "int"),
+         measure(ref, "ref_ik", [[("float", p), zero_q, ("float", 3)] for p in targets], "int")),
+        ("IK as every tick runs it: the followed branch (the reference solves and checks all four)",
+         measure(gen, "kin_ik_branch", [[("float", p), ("float", [0.3, 1.0, -1.0]), -1.0, 0, ("float", 3),
+                                          ("float", 3)] for p in targets], "int"),
          measure(ref, "ref_ik", [[("float", p), zero_q, ("float", 3)] for p in targets], "int")),
         ("accel filter step (1 axis)",
          measure(gen, "filt_accel_step", [[("float", 2), x] for x in samples], "float"),
@@ -88,6 +95,7 @@ def main() -> int:
     whole_tick(m)
     target_size()
     bus_traffic(m)
+    motion.report(m)
     return 0
 
 
@@ -135,7 +143,7 @@ def whole_tick(m):
     ref_tick = base.cycles / N_TICKS
     print(f"\nWhole 100 Hz tick, mean over {N_TICKS} ticks of a board rocking +-20 deg. Firmware "
           "(bench/tick_bench.c): what a tick adds to the main loop's idle passes: the IMU burst, "
-          "filters, attitude, level-to-base, IK + select, safety check, servo units, the SYNC_WRITE, "
+          "filters, attitude, level-to-base, the followed branch's IK, the move's swept check, servo units, the SYNC_WRITE, "
           "the status READ and the parse of its 14-byte reply. Reference (bench/reference.c "
           "ref_tick): the same arithmetic written plainly with libm, no I/O.\n")
     print("| | insns | est. cycles | us at 96 MHz | stack bytes |")

@@ -1,9 +1,10 @@
 /*
  * The whole 100 Hz tick of the firmware application on Cortex-M4, for `make bench`:
- * app_init, then enable + engage + a set position through LLCP frames, then n ticks, each
- * one IMU burst (tilting board), the stabiliser, IK, servo map, the SYNC_WRITE, one status
- * READ and the parse of its reply (four main-loop passes). The port is a minimal in-memory
- * board.
+ * app_init, enable and a set position through LLCP frames, the servos at the park pose, ticks
+ * of a level board until the arm is parked, engage, ticks until it follows the set position;
+ * then n ticks, each one IMU burst (tilting board), the stabiliser, the followed branch's IK,
+ * the swept check, servo map, the SYNC_WRITE, one status READ and the parse of its reply
+ * (four main-loop passes). The port is a minimal in-memory board.
  *
  * bench/run.py reports (cycles(bench_run(n, 1)) - cycles(bench_run(n, 0))) / n: what a
  * tick adds to the main loop's idle passes.
@@ -16,6 +17,7 @@
 #include "llcp.h"
 #include "messages.h"
 #include "model_params.h"
+#include "servo_map.h"
 
 static uint32_t now;
 static uint8_t imu_regs[128];
@@ -44,7 +46,7 @@ static size_t link_read(void *ctx, uint8_t *buf, size_t cap)
 static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (void)buf; (void)n; return true; }
 /* The status packet each servo answers a READ with (position 512), built once: composing
  * it is the servo's work, not the firmware's. */
-static void build_replies(void)
+static void build_replies(const uint16_t position[SBUS_SERVOS])
 {
     static const uint8_t ids[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
     for (int i = 0; i < SBUS_SERVOS; ++i) {
@@ -54,7 +56,8 @@ static void build_replies(void)
         r[3] = SBUS_STATUS_LEN + 2;
         r[4] = 0;
         memset(r + 5, 0, SBUS_STATUS_LEN);
-        r[6] = 0x02;
+        r[5] = (uint8_t)position[i];
+        r[6] = (uint8_t)(position[i] >> 8);
         r[sizeof replies[i] - 1] = dxl_checksum(r + 2, sizeof replies[i] - 3);
     }
 }
@@ -105,21 +108,47 @@ static void frame(const uint8_t *payload, size_t n)
     link_len += llcp_encode(payload, n, link_in + link_len, sizeof link_in - link_len);
 }
 
+static void period(const int32_t *sample, bool request);
+
+/* Ticks of a still, level board, the servos standing on their goals, until done(). */
+static bool settle(bool (*done)(void))
+{
+    const int32_t level[6] = { 0, 0, (int32_t)(1.0f / MODEL_ACCEL_G_PER_LSB), 0, 0, 0 };
+    for (int k = 0; k < 300 && !done(); ++k) {
+        period(level, true);
+        build_replies(app.bus.goal);
+    }
+    return done();
+}
+
+static bool parked(void) { return app.parked; }
+static bool following(void) { return app.engaged && app.parked && app.motion.arrived; }
+
+/* The arm engaged and following the set position; the servos answer from where they stand
+ * then (the tracking watch needs 25 ticks to mind that they do not follow the bench's). */
 static int setup(void)
 {
+    static const float park[3] = { MODEL_PARK_Q1, MODEL_PARK_Q2, MODEL_PARK_Q3 };
     uint8_t payload[MSG_SET_POSITION_SIZE];
+    uint16_t at_park[SBUS_SERVOS];
     const msg_enable_t enable = { 1 };
     const msg_engage_t engage = { 1 };
     const msg_set_position_t set = { 60.0f, 20.0f, -120.0f };
     imu_regs[MPU_REG_WHO_AM_I] = MPU_WHO_AM_I;
-    build_replies();
     app_init(&app, &PORT);
     frame(payload, msg_enable_pack(&enable, payload, sizeof payload));
     frame(payload, msg_set_position_pack(&set, payload, sizeof payload));
-    frame(payload, msg_engage_pack(&engage, payload, sizeof payload));
     app_poll(&app);
-    app.bus.state = SBUS_RUNNING;   /* skip the servo boot and configuration */
-    return app.engaged;
+    app.bus.state = SBUS_RUNNING;   /* skip the servo boot and configuration: they stand at park */
+    (void)servo_joints_to_units(park, at_park);
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        app.bus.servo[i].status_valid = true;
+        app.bus.servo[i].present_position = at_park[i];
+    }
+    build_replies(at_park);
+    if (!settle(parked)) return 0;
+    frame(payload, msg_engage_pack(&engage, payload, sizeof payload));
+    return settle(following);
 }
 
 /* One tick period: the IMU sample (accel x, y, z and gyro x, y, z counts) in the chip's
@@ -142,18 +171,18 @@ static void period(const int32_t *sample, bool request)
     app_poll(&app);   /* its reply parsed */
 }
 
-/* raw: n + 1 samples. One tick first, in both runs: the first sample after a reset sets the
- * filters and the attitude at rest on it, once, not at every tick. Then n periods, with
- * ticks or (ticks = 0) the same main-loop passes without: the idle cost, which bench/run.py
- * subtracts. */
+/* raw: n + 1 samples. After the setup, one tick first, in both runs (the board starts to
+ * rock). Then n periods, with ticks or (ticks = 0) the same main-loop passes without: the
+ * idle cost, which bench/run.py subtracts. */
 int bench_run(const int32_t *raw, uint32_t n, uint32_t ticks)
 {
     int ok = setup();
+    const uint32_t writes = app.bus.sync_writes, reads = app.bus.status_reads;
     period(raw, true);
     for (uint32_t k = 1; k <= n; ++k) period(raw + 6 * k, ticks != 0);
     /* still engaged, and every tick had its SYNC_WRITE and its status reading, as on the
      * board, whose main loop runs many passes per tick: the ticks measured were the
      * stabilising path with all of its bus traffic, not a parked arm */
     const uint32_t expected = 1u + (ticks ? n : 0u);
-    return ok && app.engaged && app.bus.sync_writes == expected && app.bus.status_reads == expected;
+    return ok && app.engaged && app.bus.sync_writes - writes == expected && app.bus.status_reads - reads == expected;
 }

@@ -15,7 +15,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo
+from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo, swept
 from . import approx
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
 
@@ -99,9 +99,43 @@ def kinematics_context(m: config.Model):
         "check": _function([(f"const bool {n}", e) for n, e in checks], q, Q, bounded=True),
         "ik": {"lines": temps + assigns, "ops": op_count(ik_exprs)},
         "nearest": _ik_nearest(m, ikm, checks_of, t),
+        "swept": _swept(m),
+        "branch": _branch(m),
         "dh": kinematics.dh_rows(m),
         "target_bound": float32_literal(2 * (m.L1 + m.L2 + m.L3)),
         "limits": [(float32_literal(l.min_rad), float32_literal(l.max_rad)) for l in m.limits],
+        "pi": float32_literal(sp.pi), "two_pi": float32_literal(2 * sp.pi), "half_pi": float32_literal(sp.pi / 2),
+    }
+
+
+def _swept(m: config.Model):
+    """kin_check_swept's body: the box's bounds (model/swept.py) from its centre c[] and
+    half-widths h[]; the caller has checked both goals against the limits, so the centre's
+    sines and cosines skip fm_sincosf's range test."""
+    body, legs = swept.box_clear(m)
+    names = [f"c[{i}]" for i in range(3)] + [f"h[{i}]" for i in range(3)]
+    return _function([("const bool body_ok", body), ("const bool legs_ok", legs)], swept.CENTRE + swept.HALF, names,
+                     angles=swept.CENTRE, c_angles=names[:3], bounded=True)
+
+
+def _branch(m: config.Model):
+    """kin_ik_branch's parts (model/kinematics.py BranchIk): the plane's angle and reach, the
+    reach in a given plane, and the elbow's angles for a clamped shoulder distance."""
+    b = kinematics.branch_ik(m)
+    t = kinematics.TARGET_SYMBOLS
+    target = ["x", "y", "z"]
+    plane = _function([("const float toward", b.azimuth), ("const float rho", b.rho)], t, target)
+    held = _function([("u", b.in_plane)], t + (kinematics.JOINT_SYMBOLS[0],), target + ["q1"],
+                     angles=kinematics.JOINT_SYMBOLS[:1], c_angles=["q1"], names=("s1", "c1"))
+    elbow = _function([("const float r2", b.r2)], t + (kinematics.U,), target + ["u"], prefix="r")
+    angles = _function([("const float q2", b.q2), ("const float q3", b.q3)],
+                       t + (kinematics.U, kinematics.ELBOW, kinematics.R2), target + ["u", "elbow", "r2c"], prefix="a")
+    return {
+        "plane": {"lines": _finite_atan2(plane["lines"])},
+        "held": held, "r2": elbow,
+        "angles": {"lines": _finite_atan2(angles["lines"])},
+        "r2_min": {e: float32_literal(v) for e, v in b.r2_min.items()},
+        "r2_max": {e: float32_literal(v) for e, v in b.r2_max.items()},
     }
 
 
@@ -259,8 +293,17 @@ def params_context(m: config.Model):
     lsb_per_g = 16384 >> config.ACCEL_RANGES_G[m.accel_range_g]
     return {
         "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
+        "tuck": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in tuck(m)],
         "park_speed": servo.speed_units(m.park_speed_rpm),
+        "transit_speed": servo.speed_units(m.transit_speed_rpm),
         "working_speed": servo.speed_units(m.working_speed_rpm),
+        # how far the goals move per tick at each speed (the Moving Speed the register holds)
+        "steps": {name: float32_literal(servo.rad_per_s(servo.speed_units(rpm)) / sp.nsimplify(m.sample_rate, rational=True))
+                  for name, rpm in (("park", m.park_speed_rpm), ("transit", m.transit_speed_rpm),
+                                    ("working", m.working_speed_rpm))},
+        "axis_hold": float32_literal(m.motion.axis_hold_radius),
+        "axis_release": float32_literal(m.motion.axis_release_radius),
+        "follow_window": float32_literal(sp.rad(sp.nsimplify(m.motion.follow_window_deg, rational=True))),
         "units_per_s_per_speed": float32_literal(servo.units_per_s_per_speed_unit(m)),
         "angle_limits": [servo.unit_range(m, j) for j in range(3)],
         "return_delay": m.servo_return_delay_us // 2,
@@ -312,6 +355,22 @@ def check_park(m: config.Model) -> None:
                        ("in a landing leg", collision.legs_clear(m, geo))):
         if not bool(cond):
             raise config.ModelError(f"{m.path}: park.q: the parked pose {list(m.park_deg)} deg is {what}")
+
+
+def tuck(m: config.Model) -> tuple[float, float]:
+    """Joints 2 and 3 (deg) of the pose in which the arm turns joint 1 to go round a leg: the
+    park pose's if they keep the end effector and joint 3 inside the leg distance (and below
+    the body) at every joint 1 angle, else hanging straight down."""
+    for q23 in (tuple(m.park_deg[1:]), (0.0, 0.0)):
+        q = [sp.Integer(0)] + [sp.rad(sp.nsimplify(d, rational=True)).evalf(40) for d in q23]
+        geo = kinematics.fk_geometry(m, at=q)
+        inside = all(m.limits[j + 1].min_deg <= d <= m.limits[j + 1].max_deg for j, d in enumerate(q23))
+        if inside and max(abs(float(geo.ee_rho)), abs(float(geo.j3_rho))) < m.leg_distance \
+                and bool(collision.body_clear(m, geo)):
+            return q23
+    raise config.ModelError(f"{m.path}: park.q: neither the parked pose's joints 2-3 nor hanging straight "
+                            f"down keep the arm inside collision.leg_distance below the body: it could not "
+                            f"turn joint 1 past a leg")
 
 
 def fastmath_context():
@@ -368,6 +427,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "pi": sp.pi,
         "messages": messages.MESSAGES,
         "faults": messages.FAULTS,
+        "states": messages.STATES,
         "types": messages.TYPES,
         "wire_types": messages.wire_types(),
     }

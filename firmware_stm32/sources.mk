@@ -15,6 +15,7 @@ APP_SOURCES = \
     App/Src/dxl_protocol.c \
     App/Src/imu_mpu6050.c \
     App/Src/llcp.c \
+    App/Src/motion.c \
     App/Src/servo_bus.c \
     App/Src/servo_track.c \
     App/Src/stabiliser.c

@@ -195,7 +195,8 @@ static void check_heartbeat(const uint8_t *buf, size_t n)
     CHECK(msg_heartbeat_unpack(bytes + 1, MSG_HEARTBEAT_SIZE, &hb));
     CHECK(isfinite(hb.set_x) && isfinite(hb.set_y) && isfinite(hb.set_z));
     CHECK(isfinite(hb.q1) && isfinite(hb.q2) && isfinite(hb.q3));
-    CHECK(hb.enabled <= 1u && hb.engaged <= 1u && hb.unreachable <= 1u);
+    CHECK(hb.enabled <= 1u && hb.engaged <= 1u && hb.unreachable <= 1u && hb.state <= MSG_STATE_HOLDING);
+    CHECK((hb.state == MSG_STATE_OFF) == !hb.enabled);
     CHECK(!hb.engaged || hb.enabled);
     CHECK(hb.faults < (1u << MSG_FAULT_COUNT));
 }
@@ -214,7 +215,7 @@ static void check_sync_write(const uint8_t *pkt, size_t n)
         goal[i] = (uint16_t)(e[1] | e[2] << 8);
         uint16_t speed = (uint16_t)(e[3] | e[4] << 8);
         CHECK(goal[i] >= CW[i] && goal[i] <= CCW[i]);
-        CHECK(speed == MODEL_PARK_SPEED || speed == MODEL_WORKING_SPEED);
+        CHECK(speed == MODEL_PARK_SPEED || speed == MODEL_TRANSIT_SPEED || speed == MODEL_WORKING_SPEED);
     }
     CHECK(kin_check_joints(app->q_cmd) == KIN_OK);
     CHECK(servo_joints_to_units(app->q_cmd, units));

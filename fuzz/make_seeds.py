@@ -24,7 +24,7 @@ from uavarm import ax12_sim, llcp, messages  # noqa: E402
 from uavarm.model import config  # noqa: E402
 
 CORPUS = Path(__file__).resolve().parent / "corpus"
-MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "app_link": 1024, "model_loader": 8192}   # fuzz/run.py
+MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "app_link": 1024, "model_loader": 16384}   # fuzz/run.py
 
 
 def frame(name: str, **fields) -> bytes:

@@ -63,7 +63,7 @@ OPTIONS = {
     "llcp_rx": ["-max_len=1024", "-timeout=10"],
     "dxl_parser": ["-max_len=1024", "-timeout=10"],
     "app_link": ["-max_len=1024", "-timeout=10"],
-    "model_loader": ["-max_len=8192", "-timeout=30", f"-dict={FUZZ / 'model_loader.dict'}"],
+    "model_loader": ["-max_len=16384", "-timeout=30", f"-dict={FUZZ / 'model_loader.dict'}"],
 }
 
 

@@ -41,11 +41,13 @@ def leg_planes(m: Model) -> tuple[sp.Expr, ...]:
     return tuple(sp.pi * a / 180 for a in folded)
 
 
-def near_leg(m: Model, g: Geometry) -> sp.Boolean:
-    """The arm's plane is within leg_half_width of a leg: |cos(theta1 - a)| >= cos(hw)."""
+def near_leg(m: Model, g: Geometry, widen: sp.Expr = sp.Integer(0)) -> sp.Boolean:
+    """The arm's plane is within leg_half_width of a leg: |cos(theta1 - a)| >= cos(hw).
+    widen (rad, joint space only): for any joint 1 within that much of g.q1."""
     hw = sp.pi * sp.nsimplify(m.leg_half_width, rational=True) / 180
     if g.q1 is not None:
-        return _near_leg_angle(m, g.q1, hw)
+        return _near_leg_angle(m, g.q1, hw, widen)
+    assert widen == 0, "a widened test needs joint 1's angle"
     cos_hw = sp.cos(hw).evalf(30)
     near = []
     for a in leg_planes(m):
@@ -54,20 +56,22 @@ def near_leg(m: Model, g: Geometry) -> sp.Boolean:
     return sp.Or(*near)
 
 
-def _near_leg_angle(m: Model, q1: sp.Expr, hw: sp.Expr) -> sp.Boolean:
+def _near_leg_angle(m: Model, q1: sp.Expr, hw: sp.Expr, widen: sp.Expr) -> sp.Boolean:
     """near_leg from the angle: for hw <= 90 deg, |cos(q1 - a)| >= cos(hw) exactly when q1 is
     within hw of a + k pi. For |q1| <= 180 deg (the joint limits' range) the k with a + k pi
-    within hw of [-pi, pi] are enough."""
-    near = []
-    for a in leg_planes(m):
-        for k in (-1, 0, 1):
-            centre = a + k * sp.pi
-            if -sp.pi - hw <= centre <= sp.pi + hw:
-                near.append(sp.Abs(q1 - centre.evalf(30)) <= hw.evalf(30))
-    return sp.Or(*near)
+    within hw of [-pi, pi] are enough (a widened test may reach one more: kept if within
+    hw + pi of the range, as widen is at most pi there). Legs in mirror pairs (+-a) are tested
+    on |q1|, half as many comparisons."""
+    reach = hw + (sp.pi if widen != 0 else 0)
+    centres = {a + k * sp.pi for a in leg_planes(m) for k in (-2, -1, 0, 1, 2)}
+    centres = {c for c in centres if -sp.pi - reach <= c <= sp.pi + reach}
+    angle = q1
+    if all(-c in centres for c in centres):   # legs in mirror pairs: half the tests on |q1|
+        angle, centres = sp.Abs(q1), {c for c in centres if c >= 0}
+    return sp.Or(*(sp.Abs(angle - c.evalf(30)) <= hw.evalf(30) + widen for c in sorted(centres, key=float)))
 
 
-def legs_clear(m: Model, g: Geometry) -> sp.Boolean:
+def legs_clear(m: Model, g: Geometry, widen: sp.Expr = sp.Integer(0)) -> sp.Boolean:
     """Near a leg, both end effector and joint 3 must stay inside the leg distance."""
     d = sp.Float(m.leg_distance, 30)
-    return sp.Or(sp.Not(near_leg(m, g)), sp.And(g.ee_rho < d, g.j3_rho < d * g.j3_scale))
+    return sp.Or(sp.Not(near_leg(m, g, widen)), sp.And(g.ee_rho < d, g.j3_rho < d * g.j3_scale))

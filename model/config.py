@@ -77,6 +77,7 @@ class Model:
     servos: tuple[Servo, Servo, Servo]
     servo_return_delay_us: int
     park_speed_rpm: float
+    transit_speed_rpm: float
     working_speed_rpm: float
     servo_boot_time: float
     park_deg: tuple[float, float, float]
@@ -94,6 +95,16 @@ class Model:
     gyro_filter: Filter
     complementary_gyro_weight: float
     estimator: "Estimator"
+    motion: "Motion"
+
+
+@dataclass(frozen=True)
+class Motion:
+    """[motion]: how the arm moves from one pose to the next."""
+    axis_hold_radius: float        # mm: joint 1 holds while the target is this close to its axis ...
+    axis_release_radius: float     # mm: ... and follows it again beyond this
+    follow_window_deg: float       # deg: following a tilt turns joint 1 at most this far from its goal
+    stretch_margin: float          # mm: the arm stops this short of full stretch
 
 
 ESTIMATOR_KINDS = ("complementary", "quaternion")
@@ -268,6 +279,7 @@ def parse(raw: bytes, path: Path) -> Model:
         servos=tuple(servos),
         servo_return_delay_us=return_delay,
         park_speed_rpm=r.number("servo.park_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
+        transit_speed_rpm=r.number("servo.transit_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         working_speed_rpm=r.number("servo.working_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
         park_deg=park,
@@ -285,6 +297,7 @@ def parse(raw: bytes, path: Path) -> Model:
         gyro_filter=filters[1],
         complementary_gyro_weight=r.number("estimator.complementary_gyro_weight", lo=0.0, hi=1.0),
         estimator=_estimator(r, sample_rate),
+        motion=_motion(r),
     )
     _check_servo_travel(r, model)
     return model
@@ -359,6 +372,22 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
         raise r.fail(k + "drone_attitude", "the drone's attitude is fused by the quaternion estimator only: "
                                            "set kind = \"quaternion\" or drone_attitude = false")
     return est
+
+
+def _motion(r: _Reader) -> Motion:
+    k = "motion."
+    reach = r.number("geometry.L2") + r.number("geometry.L3")
+    hold = r.number(k + "axis_hold_radius", nonnegative=True, hi=LENGTH_MAX_MM)
+    release = r.number(k + "axis_release_radius", nonnegative=True, hi=LENGTH_MAX_MM)
+    if release < hold:
+        raise r.fail(k + "axis_release_radius", f"must be at least axis_hold_radius ({hold}), got {release}")
+    if release >= reach:
+        raise r.fail(k + "axis_release_radius", f"must be less than the arm's reach L2 + L3 ({reach} mm), "
+                                                f"got {release}")
+    margin = r.number(k + "stretch_margin", nonnegative=True, hi=0.1 * reach)
+    window = r.number(k + "follow_window_deg", nonnegative=True, hi=180.0)
+    return Motion(axis_hold_radius=hold, axis_release_radius=release, follow_window_deg=window,
+                  stretch_margin=margin)
 
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:

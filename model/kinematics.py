@@ -138,17 +138,89 @@ def joint_limits_ok(m: Model, q) -> sp.Boolean:
     return sp.And(*conds)
 
 
+def fk_in_plane(m: Model, at=None) -> tuple[sp.Expr, sp.Expr, sp.Expr, sp.Expr]:
+    """(joint 3's signed in-plane distance from the base axis, its height, the end effector's
+    likewise): the arm's vertical plane seen from the side, u along (cos q1, -sin q1)."""
+    j3, ee = fk_points(m, at)
+    a1 = q1 if at is None else at[0]
+    tidy = sp.trigsimp if at is None else (lambda e: e)
+    in_plane = lambda p: tidy(p[0] * sp.cos(a1) - p[1] * sp.sin(a1))
+    return in_plane(j3), j3[2], in_plane(ee), ee[2]
+
+
 def fk_geometry(m: Model, at=None) -> collision.Geometry:
     """Collision quantities of the joint vector (q1, q2, q3), for the joint-space check; at
     the joint values `at` if given (what check_park needs: the same quantities without
     the symbolic simplification, a hundred times faster)."""
-    j3, ee = fk_points(m, at)
+    j3_u, j3_z, ee_u, ee_z = fk_in_plane(m, at)
     a1 = q1 if at is None else at[0]
-    tidy = sp.trigsimp if at is None else (lambda e: e)
-    # signed in-plane distance from the base axis: x = u cos(q1), y = -u sin(q1)
-    in_plane = lambda p: tidy(p[0] * sp.cos(a1) - p[1] * sp.sin(a1))
     return collision.Geometry(
         cos_q1=sp.cos(a1), sin_q1=sp.sin(a1), angle_scale=sp.Integer(1),
-        ee_rho=sp.Abs(in_plane(ee)), ee_z=ee[2],
-        j3_rho=sp.Abs(in_plane(j3)), j3_z=j3[2], j3_scale=sp.Integer(1), q1=a1,
+        ee_rho=sp.Abs(ee_u), ee_z=ee_z,
+        j3_rho=sp.Abs(j3_u), j3_z=j3_z, j3_scale=sp.Integer(1), q1=a1,
+    )
+
+
+# ---------------------------------------------------------------- one branch, followed
+
+U = sp.Symbol("u", real=True)          # signed distance of the target from joint 1's axis, in its plane
+ELBOW = sp.Symbol("elbow", real=True)  # +1 or -1: the sign of theta3 on the branch followed
+R2 = sp.Symbol("r2c", positive=True)   # squared shoulder distance the elbow is set for
+
+
+@dataclass(frozen=True)
+class BranchIk:
+    """The IK on one branch, for a target that moves (model/motion keys; SPEC "Motion").
+
+    In the plane of joint 1 at angle q1 a point sits at signed distance u from the base
+    axis (u = +rho in the plane turned toward it, -rho in the plane turned away, anything
+    in between in a plane held still) and at depth v below the shoulder. The elbow sign is
+    kept, so one formula covers both planes: the away candidates of ik() are this with
+    u = -rho. The elbow angle is set for r2c, the squared shoulder distance clamped into
+    what the elbow reaches (r2_min..r2_max of that elbow sign), while theta2 still points
+    along (u, v): a target out of reach gives the nearest point of the reachable shell,
+    radially about the shoulder.
+    """
+    azimuth: sp.Expr        # theta1 of the plane turned toward the target
+    rho: sp.Expr            # the target's distance from the base axis
+    in_plane: sp.Expr       # u of the target in the plane of joint 1 at angle q1
+    r2: sp.Expr             # u^2 + v^2 (a function of U and z)
+    q2: sp.Expr             # of U, z, ELBOW, R2
+    q3: sp.Expr             # of ELBOW, R2
+    r2_min: dict            # elbow sign -> squared shoulder distance at joint 3's limit
+    r2_max: dict            # elbow sign -> ... at the straightest elbow allowed
+
+
+def reach_r2(m: Model) -> tuple[dict, dict]:
+    """Per elbow sign, the smallest and largest squared shoulder distance joint 3 allows:
+    r^2 = L2^2 + L3^2 + 2 L2 L3 cos(theta3) falls as |theta3| grows, and the arm stops
+    motion.stretch_margin short of full stretch, where the elbow angle would swing a lot for
+    a tiny change of reach."""
+    L2, L3 = (sp.nsimplify(v, rational=True) for v in (m.L2, m.L3))
+    lim = m.limits[2]
+    r2_of = lambda deg: L2**2 + L3**2 + 2 * L2 * L3 * sp.cos(sp.rad(sp.nsimplify(deg, rational=True)))
+    stretch = (L2 + L3 - sp.nsimplify(m.motion.stretch_margin, rational=True))**2
+    lo, hi = {}, {}
+    for elbow, (near, far) in ((1, (max(lim.min_deg, 0.0), lim.max_deg)), (-1, (max(-lim.max_deg, 0.0), -lim.min_deg))):
+        far = max(min(far, 180.0), near)
+        lo[elbow] = r2_of(far)
+        hi[elbow] = sp.Max(sp.Min(r2_of(near), stretch), lo[elbow])
+    return lo, hi
+
+
+def branch_ik(m: Model) -> BranchIk:
+    L1, L2, L3 = (sp.nsimplify(v, rational=True) for v in (m.L1, m.L2, m.L3))
+    v = -(z + L1)
+    c3 = R2 - L2**2 - L3**2                        # cos(theta3) times 2 L2 L3
+    s3 = sp.sqrt(sp.Max(((L2 + L3)**2 - R2) * (R2 - (L2 - L3)**2), 0))
+    a, b = 2 * L2**2 + c3, ELBOW * s3              # as in ik(): (u, v) turned by theta3's triangle
+    lo, hi = reach_r2(m)
+    return BranchIk(
+        azimuth=sp.atan2(-y, x),
+        rho=sp.sqrt(x**2 + y**2),
+        in_plane=x * sp.cos(q1) - y * sp.sin(q1),
+        r2=U**2 + v**2,
+        q2=sp.atan2(a * U - b * v, a * v + b * U),
+        q3=ELBOW * sp.atan2(s3, c3),
+        r2_min=lo, r2_max=hi,
     )

@@ -51,13 +51,23 @@ MESSAGES = (
             "seq counts up by one per message, stamp_us is the drone's clock. Any valid frame "
             "keeps the link alive; fusing it into the estimate is the closed-loop issue's job"),
     Message("heartbeat", 0x20, "to_drone", (
-        ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"),
+        ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"), ("state", "u8"),
         ("faults", "u16"),
         ("servo1_error", "u8"), ("servo2_error", "u8"), ("servo3_error", "u8"),
         ("set_x", "f32"), ("set_y", "f32"), ("set_z", "f32"),
         ("q1", "f32"), ("q2", "f32"), ("q3", "f32"),
         ("link_frames_ok", "u16"), ("link_errors", "u16"), ("servo_timeouts", "u16"),
     ), "every 500 ms: state, set position, joint angles (rad), fault flags and counters"),
+)
+
+# heartbeat.state: what the arm is doing, in order of a session
+STATES = (
+    ("off", "servo power off"),
+    ("starting", "servo power on; the servos boot and are configured: engage is refused"),
+    ("parking", "on its way to the park pose at park speed"),
+    ("parked", "holding the park pose"),
+    ("moving", "engaged: on its way to the set position at transit speed"),
+    ("holding", "engaged: at the set position, following the tilt at working speed"),
 )
 
 # Bits of heartbeat.faults, lowest first. Latched ones stay set until the next enable.
@@ -68,12 +78,15 @@ FAULTS = (
     ("imu", "the IMU did not answer, is not an MPU-6050, or gave no usable sample (none new, or full "
             "scale) for several ticks: an engaged arm parks, engage is refused until it is back"),
     ("link_lost", "the link fell silent while engaged, so the arm parked (latched until engage)"),
-    ("out_of_reach", "at the current tilt no valid solution reaches the set position; joints held"),
+    ("out_of_reach", "at the current tilt the set position is out of the branch's reach: the arm holds "
+                     "the nearest point it reaches (or its last goal)"),
     ("command_refused", "the last command was refused: engage while disabled or while the imu or "
                         "servo_tracking fault stands, or a non-finite target"),
     ("imu_saturated", "an IMU sample since the last heartbeat had an axis at full scale; it was not used"),
     ("servo_tracking", "a servo's shaft has not followed its goal as its speed allows (stuck, drifting "
                        "or limp): an engaged arm parks, engage is refused until it tracks again"),
+    ("motion_blocked", "a move would sweep through a joint limit, the body or a leg: a set position or "
+                       "engage with no clear route was refused, or a step was stopped and the arm holds"),
 )
 
 

@@ -28,6 +28,11 @@ def speed_units(rpm: float) -> int:
     return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
 
 
+def rad_per_s(speed: int) -> sp.Expr:
+    """The joint speed (rad/s) a Moving Speed register value allows: speed x 0.111 rpm."""
+    return speed * sp.nsimplify(RPM_PER_SPEED_UNIT, rational=True) * 2 * sp.pi / 60
+
+
 def units_per_s_per_speed_unit(m: Model) -> sp.Expr:
     """Position units per second that one Moving Speed unit allows: rpm x 6 deg/s per rpm x
     the model's units per degree."""

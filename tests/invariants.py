@@ -4,14 +4,18 @@ would see it: the servo-bus packets (BusLog), the supply switch, and the heartbe
 
 Oracles, independent of the C under test: tests/oracles.py's plain geometry through
 simboard_tools.pose_ok (joint limits, body, legs, with the servo rounding), the model's
-servo map, the model's heartbeat period and tick, Protocol 1.0 framing.
+servo map, the AX-12A's speed unit (0.111 rpm), the model's heartbeat period and tick,
+Protocol 1.0 framing.
 """
 from __future__ import annotations
 
 import math
 
-from simboard_tools import FAULT, MODEL, PARK_SPEED, TICK, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
-from simboard_tools import pose_ok
+import numpy as np
+
+from simboard_tools import FAULT, IDS, MODEL, PARK_SPEED, TICK, TRANSIT_SPEED, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
+from simboard_tools import pose_ok, poses_ok, shaft_units, speed_units_per_s
+import oracles
 from uavarm import messages
 from uavarm.board import SimBoard
 
@@ -22,7 +26,11 @@ class Invariants:
     """After every check():
     - every servo packet left with the supply on and after the servos' boot time;
     - every SYNC_WRITE commands a pose inside the joint limits and clear of the body and
-      the legs (plain geometry), at the park or the working speed;
+      the legs (plain geometry), at the park, transit or working speed;
+    - motion: every goal is at most what its speed moves in the time since the previous
+      one (plus a unit of rounding) from it, and the path the servos take between the two
+      (each joint at that speed, arriving at its own time) is clear, sampled; the shafts
+      themselves stand in a safe pose whenever the firmware has commanded them;
     - every heartbeat has finite set position and joints (no NaN reaches the drone or a
       servo), engaged only while enabled, enabled exactly while the supply is on, and
       only known fault bits;
@@ -39,6 +47,8 @@ class Invariants:
         self.poll = board.poll_us / 1e6
         self.max_sync_gap = TICK + self.poll + 1e-9
         self._sync_from: float | None = None
+        self._last_goal: tuple[float, list[int]] | None = None    # (time, units) while powered
+        self.segments = 0
 
     def power_at(self, t: float) -> tuple[bool, float]:
         """(on, since when) of the servo supply at time t."""
@@ -57,8 +67,12 @@ class Invariants:
             if p.inst == 0x83:
                 goal, speed = sync_goal_speed(p.raw)
                 assert pose_ok(goal), ("unsafe command", goal, units_to_joints(goal))
-                assert speed in ([PARK_SPEED] * 3, [WORKING_SPEED] * 3), speed
+                assert speed in ([PARK_SPEED] * 3, [TRANSIT_SPEED] * 3, [WORKING_SPEED] * 3), speed
+                self._check_move(p.start, goal, speed[0])
         self.n_tx = len(log.tx)
+        on_bus = {s.id for s in board.bus.servos}
+        if board.servo_power and self._last_goal is not None and on_bus.issuperset(IDS):
+            assert pose_ok(shaft_units(board)), ("shafts in an unsafe pose", shaft_units(board))
         for k in range(self.n_hb, len(board.heartbeats)):
             hb, t = board.heartbeats[k], board.heartbeat_times[k]
             assert not hb["engaged"] or hb["enabled"], hb
@@ -72,6 +86,41 @@ class Invariants:
         assert board.time - last <= HB + self.poll + 1e-9, f"no heartbeat since {last:.3f} s"
         self._check_ticks()
         self.checks += 1
+
+    def _check_move(self, t: float, goal: list[int], speed: int) -> None:
+        """The move from the previous goal (same power-on) to this one: bounded, and clear
+        along the servos' path."""
+        on_since = self.power_at(t)[1]
+        if self._last_goal is not None and self._last_goal[0] >= on_since:
+            t0, before = self._last_goal
+            travel = speed_units_per_s(speed) * max(t - t0, TICK) + 1.0
+            jump = max(abs(a - b) for a, b in zip(goal, before))
+            assert jump <= travel, f"goal moved {jump} units at {t:.3f} s; speed {speed} allows {travel:.1f}"
+            path = oracles.servo_path(before, goal)
+            assert poses_ok(path).all(), ("unsafe on the way", before, goal)
+            self.segments += 1
+        self._last_goal = (t, list(goal))
+
+    def goals(self, since: float = -1.0) -> np.ndarray:
+        """The SYNC_WRITE goals (units, one row per tick) sent after `since`."""
+        return np.array([sync_goal_speed(p.raw)[0] for p in self.log.syncs(since)], dtype=float).reshape(-1, 3)
+
+    def check_steady(self, since: float, still: bool = False, dither: int = 1, min_gap: float = 0.1) -> dict:
+        """At a fixed set position from `since` on: no joint hunts. On a still board no goal
+        turns back at all; on a moving one no goal turns back twice within `min_gap` s (an
+        oscillation faster than the tilt that drives it). Moves of up to `dither` units
+        (rounding flips of a still target) do not count. Returns the figures: per joint the
+        range (units), the largest step (units per tick) and the number of turns."""
+        g = self.goals(since)
+        turns = [turning_points(g[:, j], dither) for j in range(3)]
+        for j, at in enumerate(turns):
+            if still:
+                assert not at, f"joint {j + 1}'s goal turns back {len(at)} times on a still board since {since:.2f} s"
+            gaps = np.diff(at) * TICK
+            assert not len(gaps) or gaps.min() >= min_gap - 1e-9, \
+                f"joint {j + 1} turns back twice within {gaps.min():.3f} s (hunting)"
+        steps = np.abs(np.diff(g, axis=0)).max(axis=0) if len(g) > 1 else np.zeros(3)
+        return {"range": g.max(axis=0) - g.min(axis=0), "step": steps, "turns": [len(t) for t in turns]}
 
     def _check_ticks(self) -> None:
         """While the servos run, a SYNC_WRITE at least every tick: the tick is never starved."""
@@ -137,3 +186,21 @@ class Invariants:
         self.board.run(0.05)
         assert not [p for p in self.log.tx if p.start > t_off + 1e-9]
         self.check()
+
+
+def turning_points(values, dither: int = 1) -> list[int]:
+    """Where a sequence turns back (the index of each extreme), ignoring moves of up to
+    `dither` from the last extreme (a value that flips between two neighbours does not turn)."""
+    turns, direction, extreme, at = [], 0, None, 0
+    for i, v in enumerate(values):
+        if extreme is None:
+            extreme, at = v, i
+        elif direction == 0:
+            if abs(v - extreme) > dither:
+                direction, extreme, at = (1 if v > extreme else -1), v, i
+        elif (v - extreme) * direction > 0:
+            extreme, at = v, i
+        elif abs(v - extreme) > dither:
+            turns.append(at)
+            direction, extreme, at = -direction, v, i
+    return turns

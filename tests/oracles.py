@@ -94,3 +94,75 @@ def check_pose(m, q, margin=0.0):
     status[in_limits & ~below] = 3
     status[in_limits & below & hits_leg] = 4
     return status, clear
+
+
+def reach_limits(m, elbow):
+    """(smallest, largest) shoulder distance of the elbow sign `elbow` on a followed branch:
+    the law of cosines at joint 3's limit, and full stretch less the model's margin."""
+    lim = m.limits[2]
+    far = math.radians(min(lim.max_deg, 180.0) if elbow > 0 else min(-lim.min_deg, 180.0))
+    r_min = math.sqrt(m.L2**2 + m.L3**2 + 2 * m.L2 * m.L3 * math.cos(far))
+    return r_min, m.L2 + m.L3 - m.motion.stretch_margin
+
+
+def branch_ik(m, p, ref, elbow, hold):
+    """The followed-branch IK as its contract states it (kinematics.h kin_ik_branch), by the
+    law of cosines in float64: joint 1 in the plane toward or away from the target, whichever
+    is nearer ref[0] (or at ref[0] with hold), stopped at its limits; the target projected
+    onto that plane; its shoulder distance clamped into the elbow's reach; joint 2 continued
+    from ref[1] (never more than half a turn from it) and stopped at its limits. Returns (q, reach_clamped, q1_clamped, q2_clamped)."""
+    x, y, z = p
+    lo = [math.radians(l.min_deg) for l in m.limits]
+    hi = [math.radians(l.max_deg) for l in m.limits]
+    q1, q1_clamped = ref[0], False
+    if not hold:
+        toward = math.atan2(-y, x)
+        turn = float(wrap(toward - ref[0]))
+        if abs(turn) > math.pi / 2:
+            turn -= math.copysign(math.pi, turn)
+        q1 = ref[0] + turn
+        if not lo[0] <= q1 <= hi[0]:
+            q1, q1_clamped = min(max(q1, lo[0]), hi[0]), True
+    u = x * math.cos(q1) - y * math.sin(q1)
+    v = -(z + m.L1)
+    r = math.hypot(u, v)
+    r_min, r_max = reach_limits(m, elbow)
+    rc = min(max(r, r_min), r_max)
+    beta = math.acos(min(1.0, max(-1.0, (m.L2**2 + m.L3**2 - rc**2) / (2 * m.L2 * m.L3))))
+    gamma = math.acos(min(1.0, max(-1.0, (rc**2 + m.L2**2 - m.L3**2) / (2 * rc * m.L2))))
+    q3 = elbow * (math.pi - beta)
+    q2 = float(wrap(math.atan2(u, v) - elbow * gamma))
+    q2 = ref[1] + float(wrap(q2 - ref[1]))     # continued from ref[1]
+    q2_clamped = not lo[1] <= q2 <= hi[1]
+    q2 = min(max(q2, lo[1]), hi[1])
+    q3 = min(max(q3, lo[2]), hi[2])
+    return np.array([q1, q2, q3]), not r_min <= r <= r_max, q1_clamped, q2_clamped
+
+
+def servo_path(a, b, samples=9):
+    """Poses a servo set passes through from joint vector a to b when every joint turns at
+    the same speed and stops on arrival (each at its own time): the joint with the longest
+    way sets the duration, the others stop early. `samples` evenly spaced instants, shape
+    (samples, 3), or (N, samples, 3) for a and b of shape (N, 3)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    d = b - a
+    way = np.abs(d).max(axis=-1, keepdims=True)[..., None, :]        # (..., 1, 1)
+    t = np.linspace(0.0, 1.0, samples)[:, None] * way                  # (..., samples, 1)
+    return a[..., None, :] + np.sign(d)[..., None, :] * np.minimum(t, np.abs(d)[..., None, :])
+
+
+def clear_by(m, q, mm, rad):
+    """Poses q (N, 3) at least `mm` below the body plane and inside the leg distance wherever
+    joint 1 is within leg_half_width + `rad` of a leg, and `rad` inside every limit."""
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    _, elbow, ee = arm_points(m, q)
+    lo = np.radians([l.min_deg for l in m.limits])
+    hi = np.radians([l.max_deg for l in m.limits])
+    ok = np.all((q > lo + rad) & (q < hi - rad), axis=1)
+    ok &= (ee[:, 2] < m.body_z - mm) & (elbow[:, 2] < m.body_z - mm)
+    near = np.zeros(len(q), dtype=bool)
+    for leg in np.radians(m.leg_angles):
+        d = np.mod(q[:, 0] - leg, math.pi)
+        near |= np.minimum(d, math.pi - d) <= math.radians(m.leg_half_width) + rad
+    reach = np.maximum(np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1]))
+    return ok & (~near | (reach < m.leg_distance - mm))

@@ -5,7 +5,9 @@ bytes out, simulated servos, heartbeat frames back.
 Every oracle here is independent of the C under test:
 - what goes on the servo bus: Protocol 1.0 framing as reference/AX12_FACTS.md states it
   (`split_packets`), and the official DynamixelSDK's packet builders (`sdk_rebuild`);
-- units <-> joint angles: the model's servo map (model/servo.py);
+- units <-> joint angles and speeds: the AX-12A's written facts (AX12_FACTS.md: 1023
+  position units over 300 deg, 0.111 rpm per Moving Speed unit) with the model file's
+  zero and direction of each servo;
 - joint limits and collisions: tests/oracles.py's plain geometry (`pose_ok`).
 """
 from __future__ import annotations
@@ -13,7 +15,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import dynamixel_sdk as sdk
 import numpy as np
@@ -21,7 +22,7 @@ import numpy as np
 import oracles
 from uavarm import ax12_sim, messages
 from uavarm.board import SimBoard, baud_register, specific_force_up
-from uavarm.model import config, servo as servo_map
+from uavarm.model import config
 
 MODEL = config.load()
 US = 1_000_000
@@ -37,7 +38,10 @@ FAULT = {name: 1 << i for i, (name, _) in enumerate(messages.FAULTS)}
 
 IDS = [s.id for s in MODEL.servos]
 TICK = 1.0 / MODEL.sample_rate
-UNIT_RAD = math.radians(MODEL.servo_range_deg) / MODEL.servo_units_max   # one position unit
+UNIT_RAD = math.radians(300.0) / 1023          # one position unit (AX12_FACTS.md)
+RPM_PER_SPEED_UNIT = 0.111                     # Moving Speed, joint mode (AX12_FACTS.md)
+_ZERO = np.array([s.zero for s in MODEL.servos], dtype=float)
+_DIRECTION = np.array([s.direction for s in MODEL.servos], dtype=float)
 
 
 # ---------------------------------------------------------------- bus packets
@@ -180,23 +184,41 @@ class BusLog:
 # ---------------------------------------------------------------- units and geometry
 
 def joint_units(j: int, rad: float) -> float:
-    return float(servo_map.joint_to_units(MODEL, j, rad))
-
-
-@lru_cache(maxsize=None)
-def _units_to_rad(j: int, units: float) -> float:
-    return float(servo_map.units_to_joint(MODEL, j, units))
+    return float(_ZERO[j] + _DIRECTION[j] * rad / UNIT_RAD)
 
 
 def units_to_joints(units) -> np.ndarray:
-    return np.array([_units_to_rad(j, float(u)) for j, u in enumerate(units)])
+    """Joint angles (rad) of servo positions, shape (..., 3)."""
+    return _DIRECTION * (np.asarray(units, dtype=float) - _ZERO) * UNIT_RAD
 
 
 PARK_Q = [math.radians(d) for d in MODEL.park_deg]
 PARK_UNITS = [joint_units(j, q) for j, q in enumerate(PARK_Q)]
-PARK_SPEED = servo_map.speed_units(MODEL.park_speed_rpm)
-WORKING_SPEED = servo_map.speed_units(MODEL.working_speed_rpm)
-UNIT_RANGE = [servo_map.unit_range(MODEL, j) for j in range(3)]
+def speed_register(rpm: float) -> int:
+    """The Moving Speed value nearest a speed in rpm (1..1023; 0 would mean no limit)."""
+    return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
+
+
+def _unit_range(j: int) -> tuple[int, int]:
+    ends = sorted(joint_units(j, math.radians(d)) for d in (MODEL.limits[j].min_deg, MODEL.limits[j].max_deg))
+    return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)
+
+
+PARK_SPEED = speed_register(MODEL.park_speed_rpm)
+TRANSIT_SPEED = speed_register(MODEL.transit_speed_rpm)
+WORKING_SPEED = speed_register(MODEL.working_speed_rpm)
+UNIT_RANGE = [_unit_range(j) for j in range(3)]
+
+
+def speed_units_per_s(speed: int) -> float:
+    """Position units per second of a Moving Speed value."""
+    return speed * RPM_PER_SPEED_UNIT * 360 / 60 / math.degrees(UNIT_RAD)
+
+
+def max_unit_step(goals) -> int:
+    """The largest change of any joint's goal (units) between consecutive goals."""
+    g = np.asarray(goals, dtype=int)
+    return int(np.abs(np.diff(g, axis=0)).max()) if len(g) > 1 else 0
 
 
 def ee_of_units(units) -> np.ndarray:
@@ -225,13 +247,17 @@ def _relaxed_model():
 RELAXED = _relaxed_model()
 
 
+def poses_ok(units) -> np.ndarray:
+    """Servo positions (N, 3) inside the servos' unit ranges of the joint limits, in poses
+    the plain-geometry check accepts up to the servo rounding."""
+    u = np.atleast_2d(np.asarray(units, dtype=float))
+    lo, hi = np.array(UNIT_RANGE, dtype=float).T
+    status, _ = oracles.check_pose(RELAXED, units_to_joints(u))
+    return np.all((u >= lo) & (u <= hi), axis=1) & (status == 0)
+
+
 def pose_ok(goal_units) -> bool:
-    """A commanded goal inside the servos' unit ranges of the joint limits, and a pose the
-    plain-geometry check accepts up to the servo rounding."""
-    if not all(lo <= u <= hi for u, (lo, hi) in zip(goal_units, UNIT_RANGE)):
-        return False
-    status, _ = oracles.check_pose(RELAXED, units_to_joints(goal_units))
-    return int(status[0]) == 0
+    return bool(poses_ok(goal_units)[0])
 
 
 def level_ik_ok(p) -> bool:
@@ -241,6 +267,14 @@ def level_ik_ok(p) -> bool:
         return False
     status, _ = oracles.check_pose(MODEL, q[0][exists[0]])
     return bool((status == 0).any())
+
+
+def level_ik_clear(p, mm: float = 0.5, deg: float = 0.5) -> bool:
+    """A point the arm reaches from a level base in a pose `mm` clear of the body plane and
+    the leg distance, `deg` clear of the leg sectors and the joint limits (plain geometry):
+    well inside the workspace, whatever margin the firmware keeps from its edges."""
+    q, exists = oracles.textbook_ik(MODEL, np.asarray(p, dtype=float))
+    return bool(exists[0].any() and oracles.clear_by(MODEL, q[0][exists[0]], mm, math.radians(deg)).any())
 
 
 # ---------------------------------------------------------------- boards

@@ -50,7 +50,8 @@ def test_every_harness_listed_and_seeded():
         assert (ROOT / "fuzz" / (name + (".py" if name in run.PY_HARNESSES else ".c"))).is_file()
         seeds = [p for p in (run.SEEDS / name).iterdir() if p.is_file()]
         assert 3 <= len(seeds) <= 20, name
-        assert all(0 < p.stat().st_size <= 8192 for p in seeds), name
+        max_len = int(next(f for f in run.OPTIONS[name] if f.startswith("-max_len=")).split("=")[1])
+        assert all(0 < p.stat().st_size <= max_len for p in seeds), name
 
 
 @pytest.mark.parametrize("name", ["llcp_rx", "dxl_parser", "app_link", "model_loader"])

@@ -124,6 +124,16 @@ def test_codegen_cli_reports_model_errors(tmp_path, capsys):
     ("silence_timeout = 1.0", "silence_timeout = 0.01", "link.silence_timeout", ">= 0.02"),
     ("heartbeat_period = 0.5", "heartbeat_period = 0.0", "link.heartbeat_period", "positive"),
     ("frame_gap = 0.05", "frame_gap = 0", "link.frame_gap", "positive"),
+    ("transit_speed_rpm = 30.0", "transit_speed_rpm = 0.0", "servo.transit_speed_rpm", ">= 0.111"),
+    ("transit_speed_rpm = 30.0", "", "servo.transit_speed_rpm", "missing"),
+    ("axis_hold_radius = 10.0", "axis_hold_radius = -1.0", "motion.axis_hold_radius", "negative"),
+    ("axis_release_radius = 15.0", "axis_release_radius = 5.0", "motion.axis_release_radius",
+     "at least axis_hold_radius (10.0)"),
+    ("axis_release_radius = 15.0", "axis_release_radius = 140.0", "motion.axis_release_radius",
+     "less than the arm's reach"),
+    ("follow_window_deg = 90.0", "follow_window_deg = 181.0", "motion.follow_window_deg", "<= 180"),
+    ("stretch_margin = 1.0", "stretch_margin = 20.0", "motion.stretch_margin", "<= 13.8"),
+    ("stretch_margin = 1.0", "", "motion.stretch_margin", "missing"),
 ])
 def test_bad_new_keys_name_file_and_key(tmp_path, old, new, key, words):
     msg = broken(tmp_path, old, new)
@@ -132,7 +142,9 @@ def test_bad_new_keys_name_file_and_key(tmp_path, old, new, key, words):
 
 def test_new_keys_load(model):
     assert model.servo_return_delay_us == 20 and model.servo_boot_time == 0.1
-    assert (model.park_speed_rpm, model.working_speed_rpm) == (10.0, 59.0)
+    assert (model.park_speed_rpm, model.transit_speed_rpm, model.working_speed_rpm) == (10.0, 30.0, 59.0)
+    m = model.motion
+    assert (m.axis_hold_radius, m.axis_release_radius, m.follow_window_deg, m.stretch_margin) == (10.0, 15.0, 90.0, 1.0)
     assert model.park_deg == (0.0, 60.0, -110.0)
     assert (model.link_silence_timeout, model.heartbeat_period, model.link_frame_gap) == (1.0, 0.5, 0.05)
     assert (model.imu_address, model.accel_range_g, model.gyro_range_dps, model.dlpf_bandwidth) == \
@@ -282,6 +294,15 @@ def test_servo_link_and_park_values(params):
     assert d["MODEL_SERVO_RETURN_DELAY"] * 2 == s["return_delay_us"]
     assert d["MODEL_PARK_SPEED"] == min(1023, max(1, round(s["park_speed_rpm"] / 0.111)))
     assert d["MODEL_WORKING_SPEED"] == min(1023, max(1, round(s["working_speed_rpm"] / 0.111)))
+    assert d["MODEL_TRANSIT_SPEED"] == min(1023, max(1, round(s["transit_speed_rpm"] / 0.111)))
+    # how far a goal moves per tick: the Moving Speed register's 0.111 rpm units for one tick
+    tick = 1 / raw["imu"]["sample_rate"]
+    for name in ("PARK", "TRANSIT", "WORKING"):
+        assert _as_f32(d[f"MODEL_{name}_STEP"]) == _as_f32(d[f"MODEL_{name}_SPEED"] * 0.111 * 2 * math.pi / 60 * tick)
+    motion = raw["motion"]
+    assert _as_f32(d["MODEL_AXIS_HOLD_RADIUS"]) == _as_f32(motion["axis_hold_radius"])
+    assert _as_f32(d["MODEL_AXIS_RELEASE_RADIUS"]) == _as_f32(motion["axis_release_radius"])
+    assert _as_f32(d["MODEL_FOLLOW_WINDOW"]) == _as_f32(math.radians(motion["follow_window_deg"]))
     assert d["MODEL_SERVO_BOOT_MS"] == round(s["boot_time"] * 1000)
     assert d["MODEL_SERVO_BAUD"] == s["baud"]
     for j, name in enumerate(config.JOINTS, start=1):

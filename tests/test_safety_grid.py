@@ -1,7 +1,8 @@
-"""Exhaustive safety (issue "Robustness", item 3): over a dense grid of targets, inside and
-outside the reachable region, and of drone tilts up to +-30 deg, the solution the firmware
-would command never violates a joint limit, the body or a leg; checked by plain geometry,
-for the firmware's C path and for the SymPy model."""
+"""Exhaustive safety over pairs of poses: from start poses on a grid, to targets on a grid,
+at drone tilts up to +-30 deg, every goal the firmware's command path sends (engage, follow,
+disengage: motion.c as app.c runs it, after its last check) is a safe pose and the path the
+servos take to it from the previous goal is safe, by plain geometry; and the SymPy model's
+own IK selection never picks an unsafe pose."""
 import math
 
 import numpy as np
@@ -10,9 +11,9 @@ import sympy as sp
 from scipy.spatial.transform import Rotation
 
 from conftest import ROOT
-from oracles import check_pose
+from oracles import check_pose, servo_path
 from uavarm import cbuild, firmware, generated
-from uavarm.model import collision, config, kinematics, servo
+from uavarm.model import collision, config, kinematics
 
 HARNESS = ROOT / "tests" / "csrc"
 TILTS_DEG = np.arange(-30.0, 30.1, 10.0)
@@ -40,33 +41,85 @@ def harness():
 def assert_safe(m, q, what):
     status, clear = check_pose(m, q, margin=MARGIN)
     bad = (status != 0) & clear
-    assert not bad.any(), f"{what}: {bad.sum()} unsafe commands, e.g. {np.degrees(q[bad][:3])} deg"
+    assert not bad.any(), f"{what}: {bad.sum()} unsafe, e.g. {np.degrees(q[bad][:3])} deg"
     lo = np.radians([l.min_deg for l in m.limits])
     hi = np.radians([l.max_deg for l in m.limits])
     assert np.all((q >= lo - 1e-6) & (q <= hi + 1e-6)), f"{what}: a joint past its limit"
     return int((~clear).sum())
 
 
-def test_firmware_path_never_commands_an_unsafe_pose(harness):
+def start_poses(m):
+    """The park pose and safe poses spread over the joint space (a 4 x 3 x 3 grid, offset
+    from every boundary), each as the arm may stand when engaged."""
+    q1 = np.radians([-120.0, -60.0, 15.0, 100.0])
+    q2 = np.radians([-70.0, 10.0, 80.0])
+    q3 = np.radians([-90.0, -20.0, 60.0])
+    poses = np.stack(np.meshgrid(q1, q2, q3, indexing="ij"), axis=-1).reshape(-1, 3)
+    status, clear = check_pose(m, poses, margin=0.05)
+    return np.vstack([np.radians(m.park_deg), poses[(status == 0) & clear]])
+
+
+def test_every_commanded_move_is_safe_from_any_start(harness):
+    """Pairs: start poses x targets on a 24 mm grid (inside and beyond the reach) x tilts of
+    0 and +-30 deg about each axis; 60 ticks following, 60 ticks disengaging. Each goal and
+    the servos' path from the one before (every joint at the same speed, each arriving at
+    its own time, sampled) pass the plain-geometry check."""
     ffi, lib = harness
     m = config.load()
-    targets, tilts = grid(m)
-    t32 = np.ascontiguousarray(targets, dtype=np.float32)
-    a32 = np.ascontiguousarray(tilts, dtype=np.float32)
-    n = len(targets) * len(tilts)
-    q = np.empty((n, 3), dtype=np.float32)
-    units = np.zeros((n, 3), dtype=np.uint16)
-    commands = lib.safety_grid(ffi.from_buffer("float[]", t32), len(targets), ffi.from_buffer("float[]", a32),
-                               len(tilts), ffi.from_buffer("float[]", q), ffi.from_buffer("uint16_t[]", units))
-    valid = ~np.isnan(q[:, 0])
-    assert valid.sum() == commands and 0 < commands < n
-    near = assert_safe(m, q[valid].astype(np.float64), "firmware")
-    # and the servo positions sent are those of the checked joints, inside the joint limits
-    for j in range(3):
-        lo, hi = servo.unit_range(m, j)
-        assert units[valid, j].min() >= lo and units[valid, j].max() <= hi
-    print(f"\nfirmware path: {len(targets)} targets x {len(tilts)} tilts = {n} solves, {commands} commands, "
-          f"0 unsafe ({near} within {MARGIN} of a boundary, checked against the limits only)")
+    reach = m.L1 + m.L2 + m.L3
+    xs = np.arange(-reach, reach + 0.1, 24.0)
+    zs = np.arange(-reach - 20.0, 20.1, 24.0)
+    x, y, z = np.meshgrid(xs, xs, zs, indexing="ij")
+    targets = np.ascontiguousarray(np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1), dtype=np.float32)
+    tilts = np.ascontiguousarray(np.radians([[0, 0], [30, 0], [-30, 0], [0, 30], [0, -30]]), dtype=np.float32)
+    ticks, cap = 60, 2_000_000
+    goals = np.empty((cap, 3), dtype=np.float32)
+    run = np.empty(cap, dtype=np.uint32)
+    refused = ffi.new("uint32_t *")
+    moves = near = total_refused = 0
+    starts = start_poses(m)
+    for start in starts:
+        n = lib.safety_grid(ffi.new("float[3]", [float(v) for v in start]), ffi.from_buffer("float[]", targets),
+                            len(targets), ffi.from_buffer("float[]", tilts), len(tilts), ticks,
+                            ffi.from_buffer("float[]", goals), ffi.from_buffer("uint32_t[]", run), cap, refused)
+        assert n < cap
+        g = goals[:n].astype(np.float64)
+        near += assert_safe(m, g, f"goals from {np.degrees(start).round(1)}")
+        same_run = run[1:n] == run[:n - 1]
+        a = np.vstack([start, g[:-1]])[1:][same_run]            # previous goal of the same run
+        b = g[1:][same_run]
+        paths = servo_path(a, b, 5)[:, 1:-1].reshape(-1, 3)
+        near += assert_safe(m, paths, f"paths from {np.degrees(start).round(1)}")
+        moves += len(a)
+        total_refused += refused[0]
+    runs = len(starts) * len(targets) * len(tilts)
+    print(f"\n{len(starts)} start poses x {len(targets)} targets x {len(tilts)} tilts = {runs} engage/follow/"
+          f"disengage runs, {moves} moves checked along the servos' path, 0 unsafe ({near} samples within "
+          f"{MARGIN} of a boundary); {total_refused} routes refused")
+
+
+def test_from_park_every_reachable_target_gets_a_route(harness):
+    """From the park pose and from every other start pose, on a level board, every target of
+    the grid that the plain-geometry IK reaches in a pose well clear of every boundary
+    (0.5 mm, 0.5 deg) gets a clear route: none refused."""
+    import simboard_tools
+    ffi, lib = harness
+    m = config.load()
+    targets, _ = grid(m)
+    targets = targets[::7]
+    reachable = np.ascontiguousarray(targets[[simboard_tools.level_ik_clear(p) for p in targets]], dtype=np.float32)
+    level = np.zeros((1, 2), dtype=np.float32)
+    goals = np.empty((len(reachable) * 120 + 1, 3), dtype=np.float32)
+    run = np.empty(len(goals), dtype=np.uint32)
+    refused = ffi.new("uint32_t *")
+    counts = []
+    for start in start_poses(m):
+        lib.safety_grid(ffi.new("float[3]", [float(v) for v in start]), ffi.from_buffer("float[]", reachable),
+                        len(reachable), ffi.from_buffer("float[]", level), 1, 60, ffi.from_buffer("float[]", goals),
+                        ffi.from_buffer("uint32_t[]", run), len(goals), refused)
+        counts.append(refused[0])
+    print(f"\n{len(reachable)} reachable targets x {len(counts)} start poses, level: {sum(counts)} refused")
+    assert sum(counts) == 0
 
 
 def model_solutions(m, p_base, q_now):

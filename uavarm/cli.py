@@ -30,7 +30,8 @@ def demo(args) -> int:
 def _heartbeat_line(hb) -> str:
     from .messages import fault_names
     q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
-    return (f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
+    from .messages import state_name
+    return (f"{state_name(hb['state'])}: enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
             f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "
             f"faults {fault_names(hb['faults'])} servo errors "
             f"{[hb[f'servo{i}_error'] for i in (1, 2, 3)]} link frames {hb['link_frames_ok']} "

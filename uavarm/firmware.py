@@ -14,7 +14,7 @@ SOURCES_MK = FIRMWARE / "sources.mk"
 HOST_PORT = Path(__file__).resolve().parent / "csrc"
 # cffi sees the headers in this order: every type before its first use.
 APP_HEADERS = ("llcp.h", "dxl_protocol.h", "port.h", "servo_bus.h", "imu_mpu6050.h",
-               "stabiliser.h", "servo_track.h", "app.h")
+               "stabiliser.h", "servo_track.h", "motion.h", "app.h")
 
 
 def source_lists(path: Path = SOURCES_MK) -> dict[str, list[str]]:

@@ -139,8 +139,11 @@ class ArmLink:
         raise CommandRefused(why(hb))
 
     def enable(self, on: bool = True) -> dict:
+        """enable 1 is taken once the servos are configured (the heartbeat's state past
+        "starting"), so an engage may follow at once."""
         self.send("enable", on=int(on))
-        return self._confirm(lambda hb: hb["enabled"] == int(on),
+        starting = [name for name, _ in messages.STATES].index("starting")
+        return self._confirm(lambda hb: hb["enabled"] == int(on) and (not on or hb["state"] > starting),
                              lambda hb: f"enable {int(on)} not taken; faults {fault_names(hb['faults'])}")
 
     def disable(self) -> dict:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import struct
 
-from .model.messages import FAULTS, MESSAGES, Message
+from .model.messages import FAULTS, MESSAGES, STATES, Message
 
 BY_NAME = {m.name: m for m in MESSAGES}
 BY_ID = {m.id: m for m in MESSAGES}
@@ -42,3 +42,8 @@ def decode(payload: bytes) -> tuple[str, dict]:
 def fault_names(bits: int) -> list[str]:
     """The names of the heartbeat fault bits set in `bits`, lowest first."""
     return [name for i, (name, _) in enumerate(FAULTS) if bits >> i & 1]
+
+
+def state_name(value: int) -> str:
+    """The name of a heartbeat state value (model/messages.py STATES)."""
+    return STATES[value][0] if 0 <= value < len(STATES) else f"unknown state {value}"

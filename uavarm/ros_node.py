@@ -380,6 +380,7 @@ class ArmNode:
         m = self.msg.ArmStatus()
         m.stamp = rospy.Time.now()
         m.enabled, m.engaged, m.unreachable = bool(hb["enabled"]), bool(hb["engaged"]), bool(hb["unreachable"])
+        m.state = hb["state"]
         m.faults, m.fault_names = hb["faults"], names
         m.servo_errors = [hb["servo1_error"], hb["servo2_error"], hb["servo3_error"]]
         m.set_position = [hb["set_x"] / 1000.0, hb["set_y"] / 1000.0, hb["set_z"] / 1000.0]

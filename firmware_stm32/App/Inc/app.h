@@ -1,15 +1,20 @@
 /* The firmware application: link commands, control states, stabiliser tick, servo bus and
  * heartbeat, over the port interface only (no HAL), so it builds for the STM32 and the host.
  *
- * States (SPEC.md "Link to the drone"):
+ * States:
  *   disabled         servo power off
- *   enabled          power on, slow speed, parked pose held
- *   enabled+engaged  working speed, set position held in the level frame (stabilised)
- * enable 0 cuts the power at once and clears engage; engage 1 is refused unless enabled;
- * set_position is accepted in any state unless non-finite (refused) or unreachable from
- * a level base (flagged "unreachable", the previous set position is kept). While engaged,
- * a target that the current tilt puts out of reach holds the joints and flags it. An
- * engaged arm whose link is silent for the model's timeout parks and flags "link lost".
+ *   enabled          power on; from where the servos report the arm to be, to the parked
+ *                    pose at park speed, held there
+ *   enabled+engaged  (parked first if not yet since enable) to the set position at transit
+ *                    speed, then held in the level frame (stabilised) at working speed
+ * Every move goes through motion.c and is checked before the bus (app_next_goal).
+ * enable 0 cuts the power at once and clears engage; engage 1 is refused unless enabled with
+ * the servos configured; set_position is accepted in any state unless non-finite (refused),
+ * outside the workspace from a level base (flagged "unreachable", the previous set position
+ * is kept) or, engaged, without a clear route (refused, "motion blocked"). While engaged, a
+ * target that the current tilt puts out of reach is followed to the nearest point the
+ * arm's branch reaches and flagged. An engaged arm whose link is silent for the model's
+ * timeout parks and flags "link lost".
  * An engaged arm also parks when the IMU gives no usable sample for APP_IMU_STALE_TICKS
  * ticks (absent, not sampling, or at full scale) or a servo stops following its goal
  * (servo_track.h); engage is refused while either stands.
@@ -27,6 +32,7 @@
 #include <stdint.h>
 
 #include "llcp.h"
+#include "motion.h"
 #include "port.h"
 #include "servo_bus.h"
 #include "servo_track.h"
@@ -47,16 +53,20 @@ typedef struct {
     sbus_t bus;
     stab_t stab;
     track_t track;
+    motion_t motion;
     /* control state */
     bool enabled;
     bool engaged;
     bool unreachable;              /* the last set_position was refused as unreachable */
     bool out_of_reach;             /* this tick's tilt put the set position out of reach */
     bool refused;                  /* the last command was refused */
+    bool motion_refused;           /* no clear route for the last move asked (until the next) */
+    bool parked;                   /* the arm has been at the park pose since enable */
     bool link_lost;                /* latched until engage */
     bool servo_config_failed;      /* latched until enable */
     float set_position[3];         /* level frame, mm */
-    float q_cmd[3];                /* the joints last commanded (always a checked pose) */
+    bool set_on_axis;              /* ... on joint 1's axis: joint 1 holds while following */
+    float q_cmd[3];                /* the joints last commanded (every move to them checked) */
     /* IMU */
     bool imu_ok;
     uint32_t imu_retry_us;
@@ -83,6 +93,10 @@ void app_init(app_t *app, const port_t *port);
 /* ISR-safe: asks for one stabiliser tick. */
 void app_request_tick(app_t *app);
 void app_poll(app_t *app);
+/* The goal to send after `sent` (the last goal sent): motion.c's proposal (following target,
+ * tilted base frame, mm, unless NULL), checked with kin_check_move, offered smaller while
+ * refused, `sent` again if nothing passes; the speed of its step. command_servos' core. */
+motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float sent[3], float q[3]);
 /* The heartbeat fault bits (MSG_FAULT_*) as they stand. */
 uint16_t app_faults(const app_t *app);
 /* cffi:end */

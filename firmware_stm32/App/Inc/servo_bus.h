@@ -7,7 +7,8 @@
  * CONFIGURING writes, to each servo: Status Return Level 1 (answer reads only), Return
  * Delay Time, CW/CCW Angle Limits (the joint limits in servo units, so the servo itself
  * also refuses a goal outside them), Torque Limit 1023 (undoes an overload shutdown) and
- * Torque Enable 1; then reads them back. Writes are sent whether or not the servo still
+ * Torque Enable 1; then reads them back, with the status registers (the servo's position
+ * before anything moves it). Writes are sent whether or not the servo still
  * answers them (a servo fresh from the factory has level 2), so the driver waits for an
  * optional status packet after each one and only the read-back decides.
  *
@@ -43,8 +44,8 @@ extern "C" {
 #define SBUS_CONFIG_ATTEMPTS 3
 #define SBUS_STATUS_ADDR 36        /* present position .. present temperature */
 #define SBUS_STATUS_LEN 8
-#define SBUS_VERIFY_ADDR 5         /* return delay .. torque limit */
-#define SBUS_VERIFY_LEN 31
+#define SBUS_VERIFY_ADDR 5         /* return delay .. present temperature: the configuration */
+#define SBUS_VERIFY_LEN 39         /* and the first status reading (where the arm is) */
 #define SBUS_TX_MAX 32
 #define SBUS_RX_MAX 48
 

@@ -1,8 +1,8 @@
 /* The stabiliser's arithmetic, one IMU sample at a time: scaled IMU sample -> generated
  * Butterworth filters -> attitude (the model's estimator: complementary, or quaternion with
  * gyro bias and, optionally, the drone's attitude from the link) -> target turned into the
- * tilted base frame, ahead by the model's lead time and about the drone's centre of rotation
- * -> generated IK and selection. No I/O: app.c feeds it and commands the servos. */
+ * tilted base frame, ahead by the model's lead time and about the drone's centre of rotation.
+ * No I/O: app.c feeds it, motion.c turns the point into joints. */
 #ifndef STABILISER_H
 #define STABILISER_H
 
@@ -68,12 +68,9 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
 bool stab_link_fresh(const stab_t *s, uint32_t now_us);
 /* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
 void stab_attitude(const stab_t *s, float *roll, float *pitch);
-/* Joints that put the end effector on target_level (level frame, mm) at the current
- * attitude predicted lead_time ahead: the valid IK candidate nearest q_now. Writes q_out only
- * when it returns KIN_OK; otherwise returns KIN_UNREACHABLE or why candidate 0 was refused. */
-kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3]);
-/* The same for a level base (no tilt): is target_level reachable at all? */
-kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3]);
+/* Where target_level (level frame, mm) is in the tilted base frame at the current attitude
+ * predicted lead_time ahead, about the drone's centre of rotation: the point to reach. */
+void stab_command_point(const stab_t *s, const float target_level[3], float p_base[3]);
 /* cffi:end */
 
 #ifdef __cplusplus

@@ -16,11 +16,6 @@ static uint32_t now_us(const app_t *app)
     return app->port->time_us(app->port->ctx);
 }
 
-static void park_joints(app_t *app)
-{
-    memcpy(app->q_cmd, PARK, sizeof app->q_cmd);
-}
-
 /* The IMU answers and gave a usable sample within the last few ticks. */
 static bool imu_usable(const app_t *app)
 {
@@ -42,8 +37,9 @@ void app_init(app_t *app, const port_t *port)
     llcp_rx_init(&app->link, MODEL_LINK_FRAME_GAP_MS, msg_expected_len);
     sbus_init(&app->bus, port, ids, MODEL_SERVO_BAUD);
     sbus_power(&app->bus, false);
-    park_joints(app);
+    memcpy(app->q_cmd, PARK, sizeof app->q_cmd);   /* reported until the servos say where they are */
     kin_fk_ee(PARK, app->set_position);   /* engage without a set position holds the park point */
+    app->set_on_axis = motion_on_axis(app->set_position);
     app->last_frame_us = app->last_heartbeat_us = app->link_ms_base_us = now_us(app);
     try_imu(app);
 }
@@ -66,13 +62,30 @@ static void set_enabled(app_t *app, bool on)
     if (on == app->enabled) return;
     app->enabled = on;
     app->engaged = false;
-    if (on) {
-        app->servo_config_failed = false;
-        park_joints(app);
-    }
+    app->motion.started = false;   /* where the arm is comes from the servos' first readings */
+    app->motion_refused = false;
+    app->parked = false;
+    if (on) app->servo_config_failed = false;
     track_reset(&app->track);   /* readings from before a power cycle say nothing */
     sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
     show_state(app);
+}
+
+/* Back to the park pose at park speed, by a route clear of limits, body and legs. */
+static void disengage(app_t *app)
+{
+    app->engaged = false;
+    if (app->motion.started && !motion_go(&app->motion, PARK)) app->motion_refused = true;   /* holds */
+}
+
+/* Head for target (level frame) at the current tilt, or as from a level base if the tilt
+ * puts it out of reach: false (and flagged) if no route there is clear. */
+static bool head_for(app_t *app, const float target[3])
+{
+    float p[3];
+    stab_command_point(&app->stab, target, p);
+    app->motion_refused = !motion_head_for(&app->motion, p, target);
+    return !app->motion_refused;
 }
 
 static void on_set_position(app_t *app, const msg_set_position_t *m)
@@ -84,8 +97,34 @@ static void on_set_position(app_t *app, const msg_set_position_t *m)
         return;
     }
     app->refused = false;
-    app->unreachable = stab_solve_level(p, app->q_cmd, q) != KIN_OK;
-    if (!app->unreachable) memcpy(app->set_position, p, sizeof p);
+    app->unreachable = !motion_goal_for(&app->motion, p, q);   /* from a level base, with the goals' margin */
+    if (app->unreachable) return;
+    /* a repeated set position (keep-alive) changes nothing; a new one, engaged, needs a route */
+    const bool moved = memcmp(p, app->set_position, sizeof p) != 0;
+    if (moved && app->engaged && !head_for(app, p)) {
+        app->refused = true;
+        return;
+    }
+    memcpy(app->set_position, p, sizeof p);
+    app->set_on_axis = motion_on_axis(p);
+}
+
+/* Engage: only with servos that report where they are, an attitude and servos that follow.
+ * The arm parks first if it has not since enable (the working speed never moves it from
+ * where it hung), then heads for the set position by a clear route. */
+static void on_engage(app_t *app, bool on)
+{
+    app->refused = false;
+    if (!on) {
+        if (app->engaged) disengage(app);
+        return;
+    }
+    if (app->engaged) return;
+    app->refused = !app->enabled || !app->motion.started || !imu_usable(app) || track_fault(&app->track)
+                   || (app->parked && !head_for(app, app->set_position));
+    if (app->refused) return;
+    app->engaged = true;
+    app->link_lost = false;
 }
 
 static void on_frame(app_t *app, const uint8_t *payload, size_t len)
@@ -99,11 +138,7 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         app->refused = false;
         set_enabled(app, enable.on != 0);
     } else if (msg_engage_unpack(payload, len, &engage)) {
-        /* stabilising needs an attitude and servos that follow */
-        app->refused = engage.on && (!app->enabled || !imu_usable(app) || track_fault(&app->track));
-        if (app->refused) return;
-        app->engaged = engage.on != 0;
-        if (app->engaged) app->link_lost = false;
+        on_engage(app, engage.on != 0);
     } else if (msg_set_position_unpack(payload, len, &set)) {
         on_set_position(app, &set);
     } else if (msg_drone_attitude_unpack(payload, len, &attitude)) {
@@ -172,34 +207,66 @@ static bool sample_imu(app_t *app, mpu_sample_t *out)
     return true;
 }
 
-/* The joints to command this tick, and the servos' speeds. */
-static const uint16_t *choose_joints(app_t *app, float q[3])
+/* Where the servos are, from their readings at configuration: the arm starts there and
+ * parks. Until then (or if that pose is not safe to move from) nothing is commanded. */
+static bool start_motion(app_t *app)
 {
-    static const uint16_t park_speeds[SBUS_SERVOS] = { MODEL_PARK_SPEED, MODEL_PARK_SPEED, MODEL_PARK_SPEED };
-    static const uint16_t working_speeds[SBUS_SERVOS] = {
-        MODEL_WORKING_SPEED, MODEL_WORKING_SPEED, MODEL_WORKING_SPEED,
-    };
-    app->out_of_reach = false;
-    if (!app->engaged) {
-        memcpy(q, PARK, sizeof PARK);
-        return park_speeds;
+    uint16_t units[SBUS_SERVOS];
+    float q[3];
+    if (app->bus.state != SBUS_RUNNING || app->motion_refused) return false;
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        if (!app->bus.servo[i].status_valid) return false;
+        units[i] = app->bus.servo[i].present_position;
     }
-    if (stab_solve(&app->stab, app->set_position, app->q_cmd, q) != KIN_OK) {
-        memcpy(q, app->q_cmd, sizeof app->q_cmd);   /* hold */
-        app->out_of_reach = true;
+    servo_units_to_joints(units, q);
+    if (!motion_start(&app->motion, q)) {
+        app->motion_refused = true;   /* a pose we cannot check a way out of: hold it */
+        return false;
     }
-    return working_speeds;
+    memcpy(app->q_cmd, q, sizeof q);
+    if (!motion_go(&app->motion, PARK)) app->motion_refused = true;
+    return true;
 }
 
+motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float sent[3], float q[3])
+{
+    const motion_speed_t speed = motion_tick(mo, target, pinned, q);
+    /* Last line of defence, whatever motion.c proposed: the move from the last goal sent,
+     * whichever way the servos take it, passes the generated checks; a refused one is
+     * tried smaller, and the arm holds (the last goal again) if none passes. */
+    while (kin_check_move(sent, q, MOTION_GOAL_MARGIN) != KIN_OK) {
+        if (!motion_smaller(mo, q)) {
+            memcpy(q, sent, 3 * sizeof q[0]);
+            break;
+        }
+    }
+    motion_done(mo, q);
+    return speed;
+}
+
+/* This tick's goal, sent with the speed its step was for. */
 static void command_servos(app_t *app)
 {
-    float q[3];
+    static const uint16_t SPEEDS[3][SBUS_SERVOS] = {
+        { MODEL_PARK_SPEED, MODEL_PARK_SPEED, MODEL_PARK_SPEED },
+        { MODEL_TRANSIT_SPEED, MODEL_TRANSIT_SPEED, MODEL_TRANSIT_SPEED },
+        { MODEL_WORKING_SPEED, MODEL_WORKING_SPEED, MODEL_WORKING_SPEED },
+    };
+    motion_t *mo = &app->motion;
+    if (!mo->started && !start_motion(app)) return;
+    float p[3], q[3];
     uint16_t units[SBUS_SERVOS];
-    const uint16_t *speeds = choose_joints(app, q);
-    /* Last line of defence: nothing reaches a servo unless the generated checks pass. */
-    if (kin_check_joints(q) != KIN_OK || !servo_joints_to_units(q, units)) return;
+    const bool following = app->engaged && app->parked;
+    if (following) stab_command_point(&app->stab, app->set_position, p);
+    const motion_speed_t speed = app_next_goal(mo, following ? p : NULL, app->set_on_axis, app->q_cmd, q);
+    app->out_of_reach = following && mo->given_up != 0;
+    if (!app->parked && mo->arrived && memcmp(mo->aim, PARK, sizeof PARK) == 0) {
+        app->parked = true;
+        if (app->engaged && !head_for(app, app->set_position)) app->engaged = false;   /* (flagged) */
+    }
+    if (!servo_joints_to_units(q, units)) return;   /* (limits and NaN, once more) */
     memcpy(app->q_cmd, q, sizeof q);
-    sbus_command(&app->bus, units, speeds);
+    sbus_command(&app->bus, units, SPEEDS[speed]);
 }
 
 /* Fault bits the heartbeat reports if they stood at any tick since the previous one: they
@@ -211,6 +278,7 @@ static void hold_faults(app_t *app, bool imu_usable_now, bool tracking_fault)
     if (!imu_usable_now) app->faults_since_heartbeat |= MSG_FAULT_IMU;
     if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
     if (tracking_fault) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
+    if (app->motion.blocked) app->faults_since_heartbeat |= MSG_FAULT_MOTION_BLOCKED;
 }
 
 /* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
@@ -225,7 +293,7 @@ static void tick(app_t *app)
     const bool tracking = track_update(&app->track, &app->bus, now);
     const bool usable = imu_usable(app);
     if (app->engaged && (!usable || tracking)) {
-        app->engaged = false;   /* park: no attitude to stabilise with, or a servo not following */
+        disengage(app);   /* park: no attitude to stabilise with, or a servo not following */
     }
     if (app->enabled) command_servos(app);
     hold_faults(app, usable, tracking);
@@ -248,7 +316,18 @@ uint16_t app_faults(const app_t *app)
     if (app->link_lost) f |= MSG_FAULT_LINK_LOST;
     if (app->out_of_reach) f |= MSG_FAULT_OUT_OF_REACH;
     if (app->refused) f |= MSG_FAULT_COMMAND_REFUSED;
+    if (app->motion_refused || app->motion.blocked) f |= MSG_FAULT_MOTION_BLOCKED;
     return f;
+}
+
+/* What the arm is doing (MSG_STATE_*). */
+static uint8_t arm_state(const app_t *app)
+{
+    const motion_t *mo = &app->motion;
+    if (!app->enabled) return MSG_STATE_OFF;
+    if (!mo->started) return MSG_STATE_STARTING;
+    if (app->engaged && app->parked) return mo->arrived ? MSG_STATE_HOLDING : MSG_STATE_MOVING;
+    return app->parked && mo->arrived ? MSG_STATE_PARKED : MSG_STATE_PARKING;
 }
 
 /* Measured joint angles where the latest status read succeeded, else the command. */
@@ -277,6 +356,7 @@ static void send_heartbeat(app_t *app)
     hb.enabled = app->enabled;
     hb.engaged = app->engaged;
     hb.unreachable = app->unreachable;
+    hb.state = arm_state(app);
     hb.faults = (uint16_t)(app_faults(app) | app->faults_since_heartbeat);
     hb.servo1_error = app->bus.servo[0].last_error;
     hb.servo2_error = app->bus.servo[1].last_error;
@@ -323,7 +403,7 @@ void app_poll(app_t *app)
 
     const uint32_t now = now_us(app);
     if (app->engaged && now - app->last_frame_us > MODEL_LINK_SILENCE_MS * 1000u) {
-        app->engaged = false;
+        disengage(app);
         app->link_lost = true;
     }
     if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) {

@@ -323,7 +323,7 @@ static size_t build_config_step(sbus_t *bus, uint8_t step, const sbus_servo_t *s
     }
 }
 
-/* The read-back of addresses 5..35 shows every register written above. */
+/* The read-back of addresses 5..43 shows every register written above. */
 static bool config_verified(const sbus_t *bus, uint16_t cw, uint16_t ccw)
 {
 #define REG8(addr) ((uint16_t)bus->reply_params[(addr) - SBUS_VERIFY_ADDR])
@@ -336,6 +336,8 @@ static bool config_verified(const sbus_t *bus, uint16_t cw, uint16_t ccw)
 #undef REG8
 #undef REG16
 }
+
+static void take_status(sbus_servo_t *s, const uint8_t *p);
 
 static void configure(sbus_t *bus)
 {
@@ -359,6 +361,7 @@ static void configure(sbus_t *bus)
         return;
     }
     if (how == DONE_OK && config_verified(bus, CW_LIMIT[i], CCW_LIMIT[i])) {
+        take_status(s, bus->reply_params + (SBUS_STATUS_ADDR - SBUS_VERIFY_ADDR));
         bus->cfg_step = 0;
         bus->cfg_attempt = 0;
         if (++bus->cfg_servo == SBUS_SERVOS) enter(bus, SBUS_RUNNING);

@@ -172,14 +172,7 @@ void stab_attitude(const stab_t *s, float *roll, float *pitch)
     *pitch = fm_atan2f(-s->up[0], sqrtf(s->up[1] * s->up[1] + s->up[2] * s->up[2]));
 }
 
-kin_status_t stab_solve(const stab_t *s, const float target_level[3], const float q_now[3], float q_out[3])
+void stab_command_point(const stab_t *s, const float target_level[3], float p_base[3])
 {
-    float p_base[3];
     est_command_point(s->up, s->rate, target_level, p_base);
-    return kin_ik_nearest(p_base, q_now, q_out);
-}
-
-kin_status_t stab_solve_level(const float target_level[3], const float q_now[3], float q_out[3])
-{
-    return kin_ik_nearest(target_level, q_now, q_out);
 }

@@ -1,0 +1,98 @@
+"""`make bench`, motion: how joint 1 and the servos' paths behave at the default set position
+and at set positions on the edge of the workspace under heavy rocking, on the simulated
+board (the firmware's host build), judged by plain geometry written here.
+
+For each scenario: the range of joint 1's commanded angle once settled (2 s after engage),
+its steps of more than 20 deg between consecutive goals, the largest step, and the moves
+whose path (every joint at the same speed, each arriving at its own time, 9 samples) passes
+a joint limit, the body plane or a leg.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from uavarm import ax12_sim
+from uavarm.board import Gravity, Rocking, SimBoard, baud_register
+
+UNIT_RAD = math.radians(300.0) / 1023      # AX-12A: 1023 position units over 300 deg
+
+
+def scenarios():
+    rock = lambda deg, hz: Rocking(math.radians(deg), math.radians(deg), hz)
+    return [
+        ("default set position (park point, on joint 1's axis), level, 10 s", Gravity(), None, 10.0),
+        ("default set position, rocking +-5 deg at 0.5 Hz, 10 s", rock(5, 0.5), None, 10.0),
+        ("(60, 20, -120), rocking +-27 deg at 0.2 Hz, 30 s", rock(27, 0.2), (60.0, 20.0, -120.0), 30.0),
+        ("(60, 20, -120), rocking +-30 deg at 0.2 Hz, 30 s", rock(30, 0.2), (60.0, 20.0, -120.0), 30.0),
+        ("(0, 95, -125), near full stretch, rocking +-27 deg at 0.2 Hz, 30 s", rock(27, 0.2), (0.0, 95.0, -125.0), 30.0),
+        ("(72, -60, -110), beside a leg, rocking +-27 deg at 0.2 Hz, 30 s", rock(27, 0.2), (72.0, -60.0, -110.0), 30.0),
+    ]
+
+
+def joints(m, units):
+    zero = np.array([s.zero for s in m.servos], dtype=float)
+    direction = np.array([s.direction for s in m.servos], dtype=float)
+    return direction * (np.asarray(units, dtype=float) - zero) * UNIT_RAD
+
+
+def unsafe(m, q):
+    """Poses q (N, 3) past a joint limit, not below the body plane, or in a leg's way."""
+    q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2]
+    out = np.stack([np.cos(q1), -np.sin(q1), np.zeros_like(q1)], axis=1)
+    down = np.array([0.0, 0.0, -1.0])
+    elbow = m.L1 * down + m.L2 * (np.sin(q2)[:, None] * out + np.cos(q2)[:, None] * down)
+    ee = elbow + m.L3 * (np.sin(q2 + q3)[:, None] * out + np.cos(q2 + q3)[:, None] * down)
+    lo = np.radians([l.min_deg for l in m.limits])
+    hi = np.radians([l.max_deg for l in m.limits])
+    bad = ~np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=1)
+    bad |= (ee[:, 2] >= m.body_z) | (elbow[:, 2] >= m.body_z)
+    near = np.zeros(len(q), dtype=bool)
+    for leg in np.radians(m.leg_angles):
+        d = np.mod(q1 - leg, math.pi)
+        near |= np.minimum(d, math.pi - d) <= math.radians(m.leg_half_width)
+    reach = np.maximum(np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1]))
+    return bad | (near & (reach >= m.leg_distance))
+
+
+def servo_path(a, b, samples=9):
+    d = b - a
+    t = np.linspace(0.0, 1.0, samples)[:, None] * np.abs(d).max()
+    return a + np.sign(d) * np.minimum(t, np.abs(d))
+
+
+def run(m, motion, target, seconds, settle=2.0):
+    servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}) for s in m.servos]
+    board = SimBoard(m, servos=servos, motion=motion)
+    board.send("enable", on=1)
+    board.run(2.2)                              # parked, from hanging straight down
+    if target is not None:
+        board.send("set_position", **dict(zip("xyz", target)))
+    board.send("engage", on=1)
+    start, t = board.time, 0.0
+    while t < settle + seconds:                 # the drone's keep-alive
+        if target is None:
+            board.send("engage", on=1)
+        else:
+            board.send("set_position", **dict(zip("xyz", target)))
+        board.run(0.25)
+        t += 0.25
+    ids = [s.id for s in m.servos]
+    q = np.array([joints(m, [c.goal[i] for i in ids]) for c in board.commands if c.time >= start + settle])
+    q1 = np.degrees(q[:, 0])
+    steps = np.abs(np.diff(q1))
+    through = sum(bool(unsafe(m, servo_path(a, b)).any()) for a, b in zip(q, q[1:]))
+    return {"range": float(q1.max() - q1.min()), "jumps": int((steps > 20.0).sum()), "largest": float(steps.max()),
+            "through": through, "moves": len(q) - 1, "engaged": board.heartbeats[-1]["engaged"]}
+
+
+def report(m) -> None:
+    print("\nMotion on the simulated board (bench/motion.py): joint 1's commanded angle once settled, "
+          "and every move's path judged by plain geometry.\n")
+    print("| scenario | joint-1 range (deg) | steps > 20 deg | largest step (deg) | moves through a limit, "
+          "the body or a leg |")
+    print("|---|---:|---:|---:|---:|")
+    for name, motion, target, seconds in scenarios():
+        r = run(m, motion, target, seconds)
+        print(f"| {name} | {r['range']:.1f} | {r['jumps']} | {r['largest']:.1f} | {r['through']} of {r['moves']} |")
