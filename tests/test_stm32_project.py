@@ -1,15 +1,18 @@
 """The STM32CubeIDE project in firmware_stm32/: one source list for the three builds, a
 clock tree that RM0383 allows, a .ioc that agrees with the model file, the board settings
-and main.h, the servo supply off from reset, and a Cortex-M4 compile of every firmware
-source with warnings as errors (`make -C firmware_stm32 check`).
+and main.h, the servo supply off from reset, a Cortex-M4 compile of every firmware source
+with warnings as errors (`make -C firmware_stm32 check`), and command-line builds that
+never mix old and new.
 
 Oracles: RM0383 (STM32F411 reference manual) clock limits and flash wait states, the
-model file (uavarm.model.config), the file system (which sources exist), and the
-compiler itself.
+model file (uavarm.model.config), the file system (which sources exist), the C
+preprocessor's includes, and the compiler itself.
 """
+import os
 import re
 import shutil
 import subprocess
+import time
 import xml.etree.ElementTree as ET
 from fractions import Fraction
 from pathlib import Path
@@ -17,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, require_arm_toolchain
+from hal_stubs import weak_stubs
 from uavarm import firmware
 from uavarm.model import config
 
@@ -333,7 +337,8 @@ Reset_Handler:
 def standin_cube_tree(root: Path):
     """An STM32CubeF4-shaped tree whose headers are ci/hal_decls and whose sources are empty
     weak functions of the declared prototypes: enough to run the Makefile's real build
-    (paths, flags, linker script, objcopy), with nothing of ST's code."""
+    (paths, flags, linker script, objcopy), with nothing of ST's code. Every file the
+    Makefile takes from STM32CUBE_F4 exists."""
     decls = FW / "ci" / "hal_decls"
     hal = root / "Drivers" / "STM32F4xx_HAL_Driver"
     dev = root / "Drivers" / "CMSIS" / "Device" / "ST" / "STM32F4xx"
@@ -342,15 +347,18 @@ def standin_cube_tree(root: Path):
               root / "Drivers" / "CMSIS" / "Include", usb / "Core" / "Inc", usb / "Core" / "Src",
               usb / "Class" / "CDC" / "Inc", usb / "Class" / "CDC" / "Src"):
         d.mkdir(parents=True, exist_ok=True)
-    stubs = ['#include "stm32f4xx_hal.h"', '#include "usbd_cdc.h"', "USBD_ClassTypeDef USBD_CDC;"]
     for header in sorted(decls.glob("*.h")):
         target = {"stm32f4xx.h": dev / "Include", "usbd_def.h": usb / "Core" / "Inc",
                   "usbd_core.h": usb / "Core" / "Inc", "usbd_cdc.h": usb / "Class" / "CDC" / "Inc"}
         shutil.copy(header, target.get(header.name, hal / "Inc"))
-        for ret, name, params in re.findall(r"^([A-Za-z_][\w ]*?\**)\s*(\w+)\(([^;{]*)\);", header.read_text(), re.M):
-            body = "" if ret.strip() == "void" else " return 0;"
-            stubs.append(f"__attribute__((weak)) {ret} {name}({params}) {{{body} }}")
-    (hal / "Src" / "stm32f4xx_hal.c").write_text("\n".join(stubs) + "\n")
+    (hal / "Src" / "stm32f4xx_hal.c").write_text(weak_stubs(decls) + "USBD_ClassTypeDef USBD_CDC;\n")
+    modules = re.search(r"CUBE_MODULES := (.*?)\n\S", (FW / "Makefile").read_text(), re.S).group(1)
+    for module in modules.replace("\\", " ").split():
+        (hal / "Src" / f"stm32f4xx_{module}.c").touch(exist_ok=True)
+    (dev / "Source" / "Templates" / "system_stm32f4xx.c").write_text("void SystemInit(void) { }\n")
+    (dev / "Source" / "Templates" / "gcc" / "startup_stm32f411xe.s").write_text(STARTUP_STANDIN)
+    for src in ("Core/Src/usbd_core.c", "Core/Src/usbd_ctlreq.c", "Core/Src/usbd_ioreq.c", "Class/CDC/Src/usbd_cdc.c"):
+        (usb / src).touch()
     return root
 
 
@@ -360,16 +368,6 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     .elf whose vector table starts the flash, plus .bin and .hex."""
     require_arm_toolchain()
     cube = standin_cube_tree(tmp_path / "cube")
-    hal_src = cube / "Drivers" / "STM32F4xx_HAL_Driver" / "Src"
-    modules = re.search(r"CUBE_MODULES := (.*?)\n\S", (FW / "Makefile").read_text(), re.S).group(1)
-    for module in modules.replace("\\", " ").split():
-        (hal_src / f"stm32f4xx_{module}.c").touch(exist_ok=True)
-    templates = cube / "Drivers" / "CMSIS" / "Device" / "ST" / "STM32F4xx" / "Source" / "Templates"
-    (templates / "system_stm32f4xx.c").write_text("void SystemInit(void) { }\n")
-    (templates / "gcc" / "startup_stm32f411xe.s").write_text(STARTUP_STANDIN)
-    usb = cube / "Middlewares" / "ST" / "STM32_USB_Device_Library"
-    for src in ("Core/Src/usbd_core.c", "Core/Src/usbd_ctlreq.c", "Core/Src/usbd_ioreq.c", "Class/CDC/Src/usbd_cdc.c"):
-        (usb / src).touch()
     build = tmp_path / "build"
     proc = make(f"STM32CUBE_F4={cube}", f"BUILD={build}", check=False)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -386,3 +384,88 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     first = hexfile.read_text().splitlines()[0]
     assert first == ":020000040800F2"                         # Intel HEX: upper address 0x0800
     print(subprocess.run(["arm-none-eabi-size", str(elf)], capture_output=True, text=True).stdout)
+
+
+# ------------------------------------------------------------------ builds that never mix old and new
+
+def test_a_relative_stm32cube_f4_is_taken_from_where_make_started(tmp_path):
+    """`make -C firmware_stm32 STM32CUBE_F4=cube` run from the folder that holds cube/, as
+    a shell runs it (the shell's PWD is where make started)."""
+    require_arm_toolchain()
+    standin_cube_tree(tmp_path / "cube")
+    proc = subprocess.run(["bash", "-c", f"cd {tmp_path} && make -C {FW} STM32CUBE_F4=cube BUILD={tmp_path / 'build'}"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert (tmp_path / "build" / "manipulator.elf").exists()
+
+
+def test_an_incomplete_stm32cube_f4_is_refused_before_anything_compiles(tmp_path):
+    """A tree without the CMSIS device folder (a clone without --recursive) is named as such."""
+    require_arm_toolchain()
+    cube = standin_cube_tree(tmp_path / "cube")
+    shutil.rmtree(cube / "Drivers" / "CMSIS" / "Device")
+    proc = make(f"STM32CUBE_F4={cube}", f"BUILD={tmp_path / 'build'}", check=False)
+    assert proc.returncode != 0
+    assert "Drivers/CMSIS/Device/ST/STM32F4xx/Include" in proc.stdout
+    assert "startup_stm32f411xe.s" in proc.stdout
+    assert not list((tmp_path / "build").rglob("*.o"))
+
+
+def includers_of(header: str, fw: Path) -> set[str]:
+    """Stems of the firmware sources that include header, directly or through other
+    headers: `#include "..."` lines followed through the source's own folder and the
+    include folders of sources.mk (and ci/hal_decls, as `make check` compiles)."""
+    lists = firmware.source_lists()
+    dirs = [fw / d for d in lists["FIRMWARE_INCLUDES"]] + [fw / "ci" / "hal_decls"]
+
+    def closure(path, seen):
+        for name in re.findall(r'^\s*#\s*include\s+"([^"]+)"', path.read_text(), re.M):
+            found = next((d / name for d in [path.parent] + dirs if (d / name).exists()), None)
+            if found and found.resolve() not in seen:
+                seen.add(found.resolve())
+                closure(found, seen)
+        return seen
+
+    return {Path(src).stem for src in lists["FIRMWARE_SOURCES"]
+            if any(p.name == header for p in closure(fw / src, set()))}
+
+
+def objects(build: Path) -> dict[str, int]:
+    return {o.stem: o.stat().st_mtime_ns for o in build.rglob("*.o")}
+
+
+def age(*folders: Path):
+    """Every file in folders (sources, headers, objects) an hour old, so that a rebuild
+    shows in an object's time stamp and only what a test touches is newer."""
+    t = time.time() - 3600
+    for folder in folders:
+        for f in folder.rglob("*"):
+            os.utime(f, (t, t))
+
+
+def test_objects_follow_their_headers_and_the_board_settings(tmp_path):
+    """A regenerated model_params.h rebuilds exactly the objects that include it; a board
+    setting given after a first build (HSE_BYPASS=1) rebuilds what it compiles into;
+    nothing is rebuilt when nothing changed."""
+    require_arm_toolchain()
+    fw, build = tmp_path / "firmware_stm32", tmp_path / "build"
+    shutil.copytree(FW, fw, ignore=shutil.ignore_patterns("build", "Debug", "Release"))
+    shutil.copytree(ROOT / "generated", tmp_path / "generated")
+    run = lambda *args: subprocess.run(["make", "-C", str(fw), "check", f"BUILD={build}", *args],
+                                       capture_output=True, text=True, check=True).stdout
+    run()
+    age(fw, tmp_path / "generated", build)
+    before = objects(build)
+    (tmp_path / "generated" / "model_params.h").touch()
+    run()
+    rebuilt = {name for name, t in objects(build).items() if t != before[name]}
+    expected = includers_of("model_params.h", fw)
+    assert {"app", "servo_bus", "stabiliser", "imu_mpu6050", "servo_track", "main"} <= expected
+    assert rebuilt == expected
+    assert " -c " not in run(), "a second build with nothing changed compiled something"
+    age(fw, tmp_path / "generated", build)
+    before = objects(build)
+    run("HSE_BYPASS=1")
+    rebuilt = {name for name, t in objects(build).items() if t != before[name]}
+    assert includers_of("board_config.h", fw) <= rebuilt
+    assert " -c " not in run("HSE_BYPASS=1")
