@@ -1,5 +1,8 @@
 """Render the model into float32 C: `python -m uavarm.codegen [--model F] [--out DIR] [--check]`.
 
+Into the default output folder it also writes the model's numbers into the board project
+(board_ioc: manipulator.ioc's user constants and main.h), and --check covers them too.
+
 Each model quantity becomes one C function; the SymPy expressions go through CSE and the
 float32 printer, then into the Jinja2 templates of templates/. Output is deterministic
 (no timestamps): regenerating an unchanged model reproduces generated/ byte for byte.
@@ -16,7 +19,7 @@ import jinja2
 import sympy as sp
 
 from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo, swept
-from . import approx
+from . import approx, board_ioc
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -473,20 +476,25 @@ def main(argv=None) -> int:
     ap.add_argument("--model", type=Path, default=config.DEFAULT_MODEL, help="model file (TOML)")
     ap.add_argument("--out", type=Path, default=GENERATED, help="output folder")
     ap.add_argument("--check", action="store_true", help="write nothing; fail if the output is stale")
+    ap.add_argument("--board", type=Path, default=None,
+                    help="board project whose .ioc and main.h get the model's user constants "
+                         "(default: firmware_stm32/ when --out is the default folder)")
     args = ap.parse_args(argv)
+    board = args.board or (board_ioc.BOARD if args.out.resolve() == GENERATED.resolve() else None)
     try:
         files = render(args.model)
+        board_files = board_ioc.render(args.model, board) if board else {}
     except config.ModelError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     if args.check:
-        d = diff(files, args.out)
+        d = diff(files, args.out) + (diff(board_files, board) if board else "")
         if d:
             sys.stdout.write(d)
             print(f"\n{args.out} is stale: run `{REGENERATE}`", file=sys.stderr)
             return 1
         print(f"{args.out} is up to date")
         return 0
-    changed = write(files, args.out)
+    changed = write(files, args.out) + (board_ioc.write(board_files, board) if board else [])
     print(f"{args.out}: {len(files)} files, {len(changed)} changed" + (f" ({', '.join(changed)})" if changed else ""))
     return 0

@@ -1,6 +1,7 @@
 """The generated tree: fresh, deterministic, float32-only, builds for the Cortex-M4, and
 follows the model file when a user edits it."""
 import re
+import shutil
 import subprocess
 
 import numpy as np
@@ -9,7 +10,7 @@ import sympy as sp
 
 from conftest import ROOT, require_arm_toolchain
 from uavarm import firmware, generated, target
-from uavarm.codegen import generate
+from uavarm.codegen import board_ioc, generate
 from uavarm.model import config, kinematics
 
 GENERATED = ROOT / "generated"
@@ -104,3 +105,43 @@ def test_check_mode_reports_staleness(tmp_path):
     assert generate.main(["--out", str(out), "--check"]) == 0
     (out / "filters.c").write_text("/* edited by hand */\n")
     assert generate.main(["--out", str(out), "--check"]) == 1
+
+
+def copy_board(dest):
+    """The two board project files make codegen writes, copied to dest."""
+    for name in (board_ioc.IOC, board_ioc.MAIN_H):
+        (dest / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(board_ioc.BOARD / name, dest / name)
+    return dest
+
+
+def test_committed_board_project_carries_the_model_numbers():
+    """manipulator.ioc's user constants and main.h's #defines of them are the model's
+    (CI fails if make codegen would change them)."""
+    files = board_ioc.render(config.DEFAULT_MODEL)
+    stale = [n for n, text in files.items() if (board_ioc.BOARD / n).read_text() != text]
+    assert not stale, f"stale: {stale}; run `make codegen` and commit firmware_stm32/"
+
+
+def test_a_model_change_reaches_the_ioc_and_main_h(tmp_path):
+    board = copy_board(tmp_path / "fw")
+    ioc = board / board_ioc.IOC
+    ioc.write_text(ioc.read_text().replace("Mcu.UserConstants=", "Mcu.UserConstants=LED_CNT,999;"))
+    text = config.DEFAULT_MODEL.read_text().replace("baud = 200000", "baud = 1000000")
+    model_path = tmp_path / "manipulator.toml"
+    model_path.write_text(text.replace("sample_rate = 100.0", "sample_rate = 200.0"))
+    assert generate.main(["--model", str(model_path), "--out", str(tmp_path / "gen"), "--board", str(board)]) == 0
+    assert "\nMcu.UserConstants=LED_CNT,999;SERVO_BAUD,1000000;TICK_PERIOD,4999\n" in ioc.read_text()
+    main_h = (board / board_ioc.MAIN_H).read_text()
+    assert "#define LED_CNT 999\n#define SERVO_BAUD 1000000\n#define TICK_PERIOD 4999\n#define CFG0_Pin" in main_h
+
+
+def test_check_mode_covers_the_board_project(tmp_path):
+    board, out = copy_board(tmp_path / "fw"), tmp_path / "gen"
+    assert generate.main(["--out", str(out), "--board", str(board)]) == 0
+    assert generate.main(["--out", str(out), "--board", str(board), "--check"]) == 0
+    ioc = board / board_ioc.IOC
+    ioc.write_text(ioc.read_text().replace("SERVO_BAUD,200000", "SERVO_BAUD,115200"))
+    assert generate.main(["--out", str(out), "--board", str(board), "--check"]) == 1
+    assert generate.main(["--out", str(out), "--board", str(board)]) == 0
+    assert "SERVO_BAUD,200000" in ioc.read_text()

@@ -1,15 +1,19 @@
 """The STM32CubeIDE project in firmware_stm32/: one source list for the three builds, a
-clock tree that RM0383 allows, a .ioc that agrees with the model file, the board settings
-and main.h, the servo supply off from reset, and a Cortex-M4 compile of every firmware
-source with warnings as errors (`make -C firmware_stm32 check`).
+clock tree that RM0383 allows, a .ioc written as CubeMX writes it and agreeing with the
+model file, the board settings and main.h, a .cproject as STM32CubeIDE writes it, the servo
+supply off from reset, a Cortex-M4 compile of every firmware source with warnings as errors
+(`make -C firmware_stm32 check`), and command-line builds that never mix old and new.
 
 Oracles: RM0383 (STM32F411 reference manual) clock limits and flash wait states, the
-model file (uavarm.model.config), the file system (which sources exist), and the
-compiler itself.
+STM32F411xE datasheet's LQFP64 pinout, the conventions of CubeMX- and CubeIDE-written
+projects (docs/board.md names those compared), the model file (uavarm.model.config), the
+file system (which sources exist), the C preprocessor's includes, and the compiler itself.
 """
+import os
 import re
 import shutil
 import subprocess
+import time
 import xml.etree.ElementTree as ET
 from fractions import Fraction
 from pathlib import Path
@@ -17,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, require_arm_toolchain
+from hal_stubs import weak_stubs
 from uavarm import firmware
 from uavarm.model import config
 
@@ -30,15 +35,21 @@ CUBEMX_PROVIDED_DIRS = ("Drivers", "Middlewares")
 CUBEMX_PROVIDED_FILES = ("Core/Src/system_stm32f4xx.c", "Core/Src/syscalls.c", "Core/Src/sysmem.c")
 
 
-def ioc():
+def ioc(path: Path = IOC):
     """manipulator.ioc as a dict (Java properties: `\\ ` and `\\:` escapes)."""
     keys = {}
-    for line in IOC.read_text().splitlines():
+    for line in path.read_text().splitlines():
         if not line or line.startswith("#"):
             continue
         key, _, value = line.partition("=")
         keys[key.replace("\\ ", " ")] = value.replace("\\:", ":")
     return keys
+
+
+def ioc_int(k, key):
+    """An integer parameter, through the user constant it may name (CubeMX's Mcu.UserConstants)."""
+    constants = dict(pair.split(",", 1) for pair in k["Mcu.UserConstants"].split(";") if pair)
+    return int(constants.get(k[key], k[key]))
 
 
 def listed(name):
@@ -128,6 +139,63 @@ def test_cubeide_include_paths_cover_the_listed_include_folders():
     assert "hal_decls" not in text, "the CI declarations must never reach the real build"
 
 
+CIDE = "com.st.stm32cube.ide.mcu.gnu.managedbuild"
+# Option values as STM32CubeIDE writes them in the CubeIDE-written projects compared
+CIDE_VALUES = {
+    "tool.c.compiler.option.optimization.level": {f"{CIDE}.tool.c.compiler.option.optimization.level.value.{v}"
+                                                  for v in ("o0", "og", "os", "ofast")},
+    "tool.c.compiler.option.debuglevel": {f"{CIDE}.tool.c.compiler.option.debuglevel.value.{v}"
+                                          for v in ("g0", "g1", "g", "g3")},
+    "option.fpu": {f"{CIDE}.option.fpu.value.fpv4-sp-d16"},
+    "option.floatabi": {f"{CIDE}.option.floatabi.value.hard"},
+}
+
+
+def cproject_configurations():
+    """{name: {option superClass suffix: option element}} of each build configuration."""
+    configs = {}
+    for conf in ET.parse(FW / ".cproject").getroot().iter("configuration"):
+        if conf.get("artifactExtension") != "elf":
+            continue
+        configs[conf.get("name")] = {opt.get("superClass").removeprefix(CIDE + "."): opt
+                                     for opt in conf.iter("option")}
+    return configs
+
+
+def test_cproject_has_debug_and_release_as_cubeide_writes_them():
+    """Both configurations CubeIDE creates, each with the option.defaults record CubeMX
+    compares against when it regenerates, the MCU, the linker script CubeIDE names, and
+    option values that occur in CubeIDE-written projects; Release optimises (-Os) and
+    leaves DEBUG undefined."""
+    configs = cproject_configurations()
+    assert set(configs) == {"Debug", "Release"}
+    for name, opts in configs.items():
+        defaults = [f.strip() for f in opts["option.defaults"].get("value").split("||")]
+        assert defaults[0].startswith("com.st.stm32cube.ide.common.services.build.inputs.revA.")
+        assert defaults[1] == name and defaults[5] == "STM32F411RETx"
+        assert "${workspace_loc:/${ProjName}/STM32F411RETX_FLASH.ld}" in defaults
+        assert opts["option.target_mcu"].get("value") == "STM32F411RETx"
+        script = opts["tool.c.linker.option.script"].get("value")
+        assert script == "${workspace_loc:/${ProjName}/STM32F411RETX_FLASH.ld}"
+        assert (FW / "STM32F411RETX_FLASH.ld").is_file()
+        for option, allowed in CIDE_VALUES.items():
+            assert opts[option].get("value") in allowed, (name, option)
+        symbols = [v.get("value") for v in opts["tool.c.compiler.option.definedsymbols"].iter("listOptionValue")]
+        assert {"USE_HAL_DRIVER", "STM32F411xE"} <= set(symbols)
+        assert ("DEBUG" in symbols) == (name == "Debug")
+    release = configs["Release"]["tool.c.compiler.option.optimization.level"].get("value")
+    assert release.endswith(".value.os")
+
+
+def test_makefile_and_cubeide_link_with_the_same_script():
+    assert re.search(r"^LDSCRIPT := STM32F411RETX_FLASH\.ld$", (FW / "Makefile").read_text(), re.M)
+    script = (FW / "STM32F411RETX_FLASH.ld").read_text()
+    k = ioc()
+    # the reserve CubeMX/CubeIDE write from the .ioc's heap and stack sizes
+    assert re.search(rf"_Min_Heap_Size = {k['ProjectManager.HeapSize']};", script)
+    assert re.search(rf"_Min_Stack_Size = {k['ProjectManager.StackSize']};", script)
+
+
 def test_cubemx_provided_files_are_not_kept():
     ignore = (FW / ".gitignore").read_text().split()
     for d in CUBEMX_PROVIDED_DIRS:
@@ -155,12 +223,28 @@ def test_clock_tree_is_within_rm0383_limits_and_gives_96_and_48_mhz():
     assert usb == 48 * MHZ                                  # USB OTG FS needs exactly 48 MHz
     apb1 = sysclk / int(k["RCC.APB1CLKDivider"].rsplit("DIV", 1)[1])
     assert apb1 <= 50 * MHZ                                 # APB1 at most 50 MHz
-    # RM0383 table 5: 90 < HCLK <= 100 MHz at 2.7-3.6 V needs 3 wait states
-    assert k["RCC.FLatency-AdvancedSettings"] == "FLASH_LATENCY_3"
+    # RM0383 table 5: 90 < HCLK <= 100 MHz at 2.7-3.6 V needs 3 wait states, in the clock
+    # set-up CubeMX writes from the .ioc and in the board's
+    for source in (FW / "Core" / "Src" / "main.c", FW / "Board" / "Src" / "board_clock.c"):
+        assert re.search(r"HAL_RCC_ClockConfig\(&\w+, FLASH_LATENCY_3\)", source.read_text()), source.name
     # CubeMX's own derived frequencies agree
-    assert int(k["RCC.SYSCLKFreq_VALUE"]) == sysclk and int(k["RCC.USBFreq_Value"]) == usb
+    assert int(k["RCC.SYSCLKFreq_VALUE"]) == sysclk and int(k["RCC.48MHZClocksFreq_Value"]) == usb
+    assert int(k["RCC.PLLQCLKFreq_Value"]) == usb
     assert int(k["RCC.VCOInputFreq_Value"]) == vco_in and int(k["RCC.VCOOutputFreq_Value"]) == vco
     assert int(k["RCC.APB1TimFreq_Value"]) == 2 * apb1     # timers run at 2 x PCLK1 when APB1 is divided
+    assert int(k["RCC.LSE_VALUE"]) == 32768 and int(k["RCC.HSI_VALUE"]) == 16 * MHZ
+
+
+def test_i2s_pll_values_follow_its_own_input_divider():
+    """The I2S PLL is unused but CubeMX stores its frequencies: they must be those of the
+    .ioc's PLLI2SM (RM0383 6.3.23 RCC_PLLI2SCFGR: own input divider M, VCO input 1-2 MHz,
+    VCO output 100-432 MHz, R 2-7; CubeMX's defaults N = 192, R = 2 when not stored)."""
+    k = ioc()
+    m, n, r = int(k["RCC.PLLI2SM"]), int(k.get("RCC.PLLI2SN", 192)), int(k.get("RCC.PLLI2SR", 2))
+    vco_in = Fraction(int(k["RCC.HSE_VALUE"]), m)
+    assert 1 * MHZ <= vco_in <= 2 * MHZ and int(k["RCC.VCOInputMFreq_Value"]) == vco_in
+    assert 100 * MHZ <= vco_in * n <= 432 * MHZ and int(k["RCC.VCOI2SOutputFreq_Value"]) == vco_in * n
+    assert int(k["RCC.VcooutputI2S"]) == int(k["RCC.I2SClocksFreq_Value"]) == vco_in * n / r
 
 
 def test_crystal_is_one_board_setting_the_ioc_and_hal_agree_with():
@@ -190,21 +274,109 @@ def test_ioc_peripherals_follow_the_model_and_port_h():
     m = config.load()
     k = ioc()
     timer_hz = int(k["RCC.APB1TimFreq_Value"])
-    assert int(k["USART1.BaudRate"]) == m.servo_baud
-    assert k["USART1.VirtualMode-Half_duplex(single_wire_mode)"] == "VM_ASYNC"
+    assert k["USART1.BaudRate"] == "SERVO_BAUD" and ioc_int(k, "USART1.BaudRate") == m.servo_baud
+    assert k["USART1.VirtualMode"] == "VM_ASYNC"
     assert k["PB6.Mode"] == "Half_duplex(single_wire_mode)" and k["PB6.Signal"] == "USART1_TX"
-    assert k["I2C1.I2C_Mode"] == "I2C_Fast" and int(k["I2C1.ClockSpeed"]) == 400_000
+    assert k["I2C1.I2C_Mode"] == "I2C_Fast"          # CubeMX writes ClockSpeed 400000 for it
     # TIM2: 1 MHz, 32-bit period: the microsecond clock wraps at 2^32 like port.h says
     assert Fraction(timer_hz, int(k["TIM2.Prescaler"]) + 1) == MHZ
     assert int(k["TIM2.Period"]) == 2**32 - 1
     # TIM3: one update per model sample period
-    tick = Fraction((int(k["TIM3.Prescaler"]) + 1) * (int(k["TIM3.Period"]) + 1), timer_hz)
+    assert k["TIM3.Period"] == "TICK_PERIOD"
+    tick = Fraction((int(k["TIM3.Prescaler"]) + 1) * (ioc_int(k, "TIM3.Period") + 1), timer_hz)
     assert tick == Fraction(1) / Fraction(str(m.sample_rate))
     assert k["NVIC.TIM3_IRQn"].startswith("true:")
     assert k["USB_DEVICE.CLASS_NAME_FS"] == "CDC" and k["USB_OTG_FS.VirtualMode"] == "Device_Only"
+    assert (k["USB_DEVICE.VirtualMode"], k["USB_DEVICE.VirtualModeFS"]) == ("Cdc", "Cdc_FS")
     assert (k["PA11.Signal"], k["PA12.Signal"]) == ("USB_OTG_FS_DM", "USB_OTG_FS_DP")
     assert "PA9.Signal" not in k, "PA9 (VBUS sensing) stays unused: VBUS sensing is off"
+    # the project's USB strings, and CDC buffers of one full-speed bulk packet (USB 2.0
+    # 5.8.3: at most 64 bytes) into which a received packet fits whole
+    assert (k["USB_DEVICE.MANUFACTURER_STRING"], k["USB_DEVICE.PRODUCT_STRING_CDC_FS"]) == \
+        ("uavarm", "uavarm manipulator")
+    assert int(k["USB_DEVICE.APP_RX_DATA_SIZE"]) == int(k["USB_DEVICE.APP_TX_DATA_SIZE"]) == 64
 
+
+# ------------------------------------------------------------------ .ioc as CubeMX writes it
+
+# DS10314 (STM32F411xC/xE datasheet) table 8, LQFP64 pin numbers of the pins the .ioc uses
+LQFP64_POSITION = {"PH0 - OSC_IN": 5, "PH1 - OSC_OUT": 6, "PC0": 8, "PC1": 9, "PA5": 21, "PA6": 22, "PB0": 26,
+                   "PA8": 41, "PA11": 44, "PA12": 45, "PA13": 46, "PA14": 49, "PB6": 58, "PB8": 61, "PB9": 62}
+
+# (MxCube.Version, MxDb.Version, FirmwarePackage) as CubeMX-written STM32F411 projects pair
+# them: a CubeMX release and the STM32CubeF4 package that was current when it shipped
+SHIPPED_TOGETHER = {("6.9.2", "DB.6.0.92", "STM32Cube FW_F4 V1.27.1"),
+                    ("6.10.0", "DB.6.0.100", "STM32Cube FW_F4 V1.28.0"),
+                    ("6.12.0", "DB.6.0.120", "STM32Cube FW_F4 V1.28.1"),
+                    ("6.13.0", "DB.6.0.130", "STM32Cube FW_F4 V1.28.1"),
+                    ("6.14.1", "DB.6.0.141", "STM32Cube FW_F4 V1.28.2")}
+
+
+def test_ioc_is_saved_as_cubemx_saves_it():
+    """CubeMX 6 writes its header line, then every key once in byte order, Java-properties
+    escaped; indexed lists (Mcu.IPn, Mcu.Pinn) run from 0 with their count; every IP's
+    IPParameters names exactly its stored parameters."""
+    lines = IOC.read_text().splitlines()
+    assert lines[0] == "#MicroXplorer Configuration settings - do not modify"
+    keys = [line.split("=", 1)[0] for line in lines[1:]]
+    assert keys == sorted(keys) and len(keys) == len(set(keys))
+    assert all(" " not in k.replace("\\ ", "") for k in keys)
+    k = ioc()
+    for name, count in (("Mcu.IP", "Mcu.IPNb"), ("Mcu.Pin", "Mcu.PinsNb")):
+        indices = sorted(int(key[len(name):]) for key in k if re.fullmatch(re.escape(name) + r"\d+", key))
+        assert indices == list(range(int(k[count]))), name
+    ips = {k[f"Mcu.IP{i}"] for i in range(int(k["Mcu.IPNb"]))}
+    assert ips == {"I2C1", "NVIC", "RCC", "SYS", "TIM2", "TIM3", "USART1", "USB_DEVICE", "USB_OTG_FS"}
+    assert [k[f"Mcu.IP{i}"] for i in range(len(ips))] == sorted(ips)
+    for ip in ips - {"NVIC", "SYS"}:
+        stored = {key.split(".", 1)[1] for key in k if key.startswith(ip + ".") and key != ip + ".IPParameters"}
+        assert set(k[ip + ".IPParameters"].split(",")) == stored, ip
+    # pins in package order, then the virtual pins; each with its signal
+    pins = [k[f"Mcu.Pin{i}"] for i in range(int(k["Mcu.PinsNb"]))]
+    physical = [p for p in pins if not p.startswith("VP_")]
+    assert pins[:len(physical)] == sorted(physical, key=LQFP64_POSITION.__getitem__)
+    assert all(f"{p}.Signal" in k for p in pins)
+
+
+def test_ioc_versions_and_keys_are_those_of_cubemx_for_this_mcu():
+    k = ioc()
+    assert (k["Mcu.UserName"], k["Mcu.Name"], k["Mcu.Package"], k["Mcu.CPN"]) == \
+        ("STM32F411RETx", "STM32F411R(C-E)Tx", "LQFP64", "STM32F411RET6")
+    assert (k["MxCube.Version"], k["MxDb.Version"], k["ProjectManager.FirmwarePackage"]) in SHIPPED_TOGETHER
+    assert k["File.Version"] == "6" and k["isbadioc"] == "false"
+    # IP parameters with a mode suffix are a CubeMX 4/5 form; CubeMX 6 writes plain names
+    assert not [key for key in k if re.match(r"\w+\.VirtualMode-", key)]
+    assert k["I2C1.IPParameters"] == "I2C_Mode"
+    # the user constants: NAME,VALUE pairs, each used by a parameter
+    constants = dict(pair.split(",", 1) for pair in k["Mcu.UserConstants"].split(";"))
+    assert set(constants) == {"SERVO_BAUD", "TICK_PERIOD"}
+    assert {name for name in constants if name in k.values()} == set(constants)
+
+
+def test_main_h_has_the_user_constants_as_cubemx_writes_them():
+    """CubeMX writes `#define NAME VALUE` for each user constant, in the .ioc's order,
+    first in main.h's private defines (as CubeMX-written projects show)."""
+    k = ioc()
+    main_h = (FW / "Core" / "Inc" / "main.h").read_text()
+    block = main_h.split("/* Private defines -----------------------------------------------------------*/\n")[1]
+    expected = "".join(f"#define {n} {v}\n" for n, v in (p.split(",", 1) for p in k["Mcu.UserConstants"].split(";")))
+    assert block.startswith(expected)
+
+
+def test_generate_code_leaves_out_only_the_system_clock_call():
+    """The .ioc's "Do Not Generate Function Call" (ProjectManager.functionlistsort: rank,
+    function, IP, not called, driver, static) is set for SystemClock_Config only, whose
+    place the board's clock takes in a USER CODE section; the other inits run in main()."""
+    k = ioc()
+    entries = [e.split("-") for e in k["ProjectManager.functionlistsort"].split(",")]
+    not_called = {name for _, name, _, skip, _, _ in entries if skip == "true"}
+    assert not_called == {"SystemClock_Config"}
+    main_c = (FW / "Core" / "Src" / "main.c").read_text()
+    body = main_c[main_c.index("int main(void)"):main_c.index("/* USER CODE BEGIN 2 */")]
+    calls = re.findall(r"^  (\w+)\(\);", body, re.M)
+    assert calls == ["HAL_Init", "board_clock_config"] + [name for _, name, _, skip, _, _ in entries if skip == "false"]
+    sysinit = body[body.index("/* USER CODE BEGIN SysInit */"):body.index("/* USER CODE END SysInit */")]
+    assert "board_clock_config();" in sysinit
 
 def test_main_h_pin_labels_match_the_ioc():
     main_h = (FW / "Core" / "Inc" / "main.h").read_text()
@@ -333,7 +505,8 @@ Reset_Handler:
 def standin_cube_tree(root: Path):
     """An STM32CubeF4-shaped tree whose headers are ci/hal_decls and whose sources are empty
     weak functions of the declared prototypes: enough to run the Makefile's real build
-    (paths, flags, linker script, objcopy), with nothing of ST's code."""
+    (paths, flags, linker script, objcopy), with nothing of ST's code. Every file the
+    Makefile takes from STM32CUBE_F4 exists."""
     decls = FW / "ci" / "hal_decls"
     hal = root / "Drivers" / "STM32F4xx_HAL_Driver"
     dev = root / "Drivers" / "CMSIS" / "Device" / "ST" / "STM32F4xx"
@@ -342,15 +515,18 @@ def standin_cube_tree(root: Path):
               root / "Drivers" / "CMSIS" / "Include", usb / "Core" / "Inc", usb / "Core" / "Src",
               usb / "Class" / "CDC" / "Inc", usb / "Class" / "CDC" / "Src"):
         d.mkdir(parents=True, exist_ok=True)
-    stubs = ['#include "stm32f4xx_hal.h"', '#include "usbd_cdc.h"', "USBD_ClassTypeDef USBD_CDC;"]
     for header in sorted(decls.glob("*.h")):
         target = {"stm32f4xx.h": dev / "Include", "usbd_def.h": usb / "Core" / "Inc",
                   "usbd_core.h": usb / "Core" / "Inc", "usbd_cdc.h": usb / "Class" / "CDC" / "Inc"}
         shutil.copy(header, target.get(header.name, hal / "Inc"))
-        for ret, name, params in re.findall(r"^([A-Za-z_][\w ]*?\**)\s*(\w+)\(([^;{]*)\);", header.read_text(), re.M):
-            body = "" if ret.strip() == "void" else " return 0;"
-            stubs.append(f"__attribute__((weak)) {ret} {name}({params}) {{{body} }}")
-    (hal / "Src" / "stm32f4xx_hal.c").write_text("\n".join(stubs) + "\n")
+    (hal / "Src" / "stm32f4xx_hal.c").write_text(weak_stubs(decls) + "USBD_ClassTypeDef USBD_CDC;\n")
+    modules = re.search(r"CUBE_MODULES := (.*?)\n\S", (FW / "Makefile").read_text(), re.S).group(1)
+    for module in modules.replace("\\", " ").split():
+        (hal / "Src" / f"stm32f4xx_{module}.c").touch(exist_ok=True)
+    (dev / "Source" / "Templates" / "system_stm32f4xx.c").write_text("void SystemInit(void) { }\n")
+    (dev / "Source" / "Templates" / "gcc" / "startup_stm32f411xe.s").write_text(STARTUP_STANDIN)
+    for src in ("Core/Src/usbd_core.c", "Core/Src/usbd_ctlreq.c", "Core/Src/usbd_ioreq.c", "Class/CDC/Src/usbd_cdc.c"):
+        (usb / src).touch()
     return root
 
 
@@ -360,16 +536,6 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     .elf whose vector table starts the flash, plus .bin and .hex."""
     require_arm_toolchain()
     cube = standin_cube_tree(tmp_path / "cube")
-    hal_src = cube / "Drivers" / "STM32F4xx_HAL_Driver" / "Src"
-    modules = re.search(r"CUBE_MODULES := (.*?)\n\S", (FW / "Makefile").read_text(), re.S).group(1)
-    for module in modules.replace("\\", " ").split():
-        (hal_src / f"stm32f4xx_{module}.c").touch(exist_ok=True)
-    templates = cube / "Drivers" / "CMSIS" / "Device" / "ST" / "STM32F4xx" / "Source" / "Templates"
-    (templates / "system_stm32f4xx.c").write_text("void SystemInit(void) { }\n")
-    (templates / "gcc" / "startup_stm32f411xe.s").write_text(STARTUP_STANDIN)
-    usb = cube / "Middlewares" / "ST" / "STM32_USB_Device_Library"
-    for src in ("Core/Src/usbd_core.c", "Core/Src/usbd_ctlreq.c", "Core/Src/usbd_ioreq.c", "Class/CDC/Src/usbd_cdc.c"):
-        (usb / src).touch()
     build = tmp_path / "build"
     proc = make(f"STM32CUBE_F4={cube}", f"BUILD={build}", check=False)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
@@ -386,3 +552,88 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     first = hexfile.read_text().splitlines()[0]
     assert first == ":020000040800F2"                         # Intel HEX: upper address 0x0800
     print(subprocess.run(["arm-none-eabi-size", str(elf)], capture_output=True, text=True).stdout)
+
+
+# ------------------------------------------------------------------ builds that never mix old and new
+
+def test_a_relative_stm32cube_f4_is_taken_from_where_make_started(tmp_path):
+    """`make -C firmware_stm32 STM32CUBE_F4=cube` run from the folder that holds cube/, as
+    a shell runs it (the shell's PWD is where make started)."""
+    require_arm_toolchain()
+    standin_cube_tree(tmp_path / "cube")
+    proc = subprocess.run(["bash", "-c", f"cd {tmp_path} && make -C {FW} STM32CUBE_F4=cube BUILD={tmp_path / 'build'}"],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert (tmp_path / "build" / "manipulator.elf").exists()
+
+
+def test_an_incomplete_stm32cube_f4_is_refused_before_anything_compiles(tmp_path):
+    """A tree without the CMSIS device folder (a clone without --recursive) is named as such."""
+    require_arm_toolchain()
+    cube = standin_cube_tree(tmp_path / "cube")
+    shutil.rmtree(cube / "Drivers" / "CMSIS" / "Device")
+    proc = make(f"STM32CUBE_F4={cube}", f"BUILD={tmp_path / 'build'}", check=False)
+    assert proc.returncode != 0
+    assert "Drivers/CMSIS/Device/ST/STM32F4xx/Include" in proc.stdout
+    assert "startup_stm32f411xe.s" in proc.stdout
+    assert not list((tmp_path / "build").rglob("*.o"))
+
+
+def includers_of(header: str, fw: Path) -> set[str]:
+    """Stems of the firmware sources that include header, directly or through other
+    headers: `#include "..."` lines followed through the source's own folder and the
+    include folders of sources.mk (and ci/hal_decls, as `make check` compiles)."""
+    lists = firmware.source_lists()
+    dirs = [fw / d for d in lists["FIRMWARE_INCLUDES"]] + [fw / "ci" / "hal_decls"]
+
+    def closure(path, seen):
+        for name in re.findall(r'^\s*#\s*include\s+"([^"]+)"', path.read_text(), re.M):
+            found = next((d / name for d in [path.parent] + dirs if (d / name).exists()), None)
+            if found and found.resolve() not in seen:
+                seen.add(found.resolve())
+                closure(found, seen)
+        return seen
+
+    return {Path(src).stem for src in lists["FIRMWARE_SOURCES"]
+            if any(p.name == header for p in closure(fw / src, set()))}
+
+
+def objects(build: Path) -> dict[str, int]:
+    return {o.stem: o.stat().st_mtime_ns for o in build.rglob("*.o")}
+
+
+def age(*folders: Path):
+    """Every file in folders (sources, headers, objects) an hour old, so that a rebuild
+    shows in an object's time stamp and only what a test touches is newer."""
+    t = time.time() - 3600
+    for folder in folders:
+        for f in folder.rglob("*"):
+            os.utime(f, (t, t))
+
+
+def test_objects_follow_their_headers_and_the_board_settings(tmp_path):
+    """A regenerated model_params.h rebuilds exactly the objects that include it; a board
+    setting given after a first build (HSE_BYPASS=1) rebuilds what it compiles into;
+    nothing is rebuilt when nothing changed."""
+    require_arm_toolchain()
+    fw, build = tmp_path / "firmware_stm32", tmp_path / "build"
+    shutil.copytree(FW, fw, ignore=shutil.ignore_patterns("build", "Debug", "Release"))
+    shutil.copytree(ROOT / "generated", tmp_path / "generated")
+    run = lambda *args: subprocess.run(["make", "-C", str(fw), "check", f"BUILD={build}", *args],
+                                       capture_output=True, text=True, check=True).stdout
+    run()
+    age(fw, tmp_path / "generated", build)
+    before = objects(build)
+    (tmp_path / "generated" / "model_params.h").touch()
+    run()
+    rebuilt = {name for name, t in objects(build).items() if t != before[name]}
+    expected = includers_of("model_params.h", fw)
+    assert {"app", "servo_bus", "stabiliser", "imu_mpu6050", "servo_track", "main"} <= expected
+    assert rebuilt == expected
+    assert " -c " not in run(), "a second build with nothing changed compiled something"
+    age(fw, tmp_path / "generated", build)
+    before = objects(build)
+    run("HSE_BYPASS=1")
+    rebuilt = {name for name, t in objects(build).items() if t != before[name]}
+    assert "board_clock" in rebuilt and includers_of("board_config.h", fw) <= rebuilt
+    assert " -c " not in run("HSE_BYPASS=1")

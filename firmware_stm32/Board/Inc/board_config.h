@@ -19,7 +19,7 @@
 #define BOARD_HSE_BYPASS 0
 #endif
 
-/* The PLL (RM0383 6.3.2): VCO input = HSE / M = 1 MHz (allowed 1-2 MHz; 2 MHz is best
+/* The PLL (RM0383 6.3.2), as board_clock_config() sets it: VCO input = HSE / M = 1 MHz (allowed 1-2 MHz; 2 MHz is best
  * for jitter, 1 MHz lets every whole-MHz crystal from 4 to 26 MHz work), VCO = 1 MHz * N
  * = 384 MHz (allowed 100-432 MHz), SYSCLK = VCO / P = 96 MHz (at most 100 MHz), USB and
  * SDIO clock = VCO / Q = 48 MHz exactly (USB full speed needs 48 MHz). */

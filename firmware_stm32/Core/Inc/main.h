@@ -4,8 +4,10 @@
   * @file           : main.h
   * @brief          : Header for main.c file.
   *                   Pin labels and shared handles of the uavarm manipulator board.
-  *                   Layout follows STM32CubeMX (manipulator.ioc); keep edits inside
-  *                   USER CODE sections so that regeneration keeps them.
+  *                   CubeMX writes the private defines from manipulator.ioc: its user
+  *                   constants (SERVO_BAUD, TICK_PERIOD: the model file's, which make
+  *                   codegen writes into the .ioc and here) and the pin labels. Keep
+  *                   edits inside USER CODE sections so that regeneration keeps them.
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -52,6 +54,8 @@ extern TIM_HandleTypeDef htim3;
 /* USER CODE END EFP */
 
 /* Private defines -----------------------------------------------------------*/
+#define SERVO_BAUD 200000
+#define TICK_PERIOD 9999
 #define CFG0_Pin GPIO_PIN_0
 #define CFG0_GPIO_Port GPIOC
 #define CFG1_Pin GPIO_PIN_1

@@ -2,9 +2,12 @@
 /**
   ******************************************************************************
   * @file    stm32f4xx_hal_conf.h
-  * @brief   HAL configuration file: the HAL modules the manipulator firmware uses
-  *          and the oscillator values (layout of STM32CubeF4's
-  *          stm32f4xx_hal_conf_template.h, as CubeMX writes it).
+  * @brief   HAL configuration file: the HAL modules of manipulator.ioc's
+  *          peripherals and the oscillator values, as CubeMX writes them
+  *          (HSE_VALUE from RCC.HSE_VALUE, TICK_INT_PRIORITY from the SysTick
+  *          priority). The Makefile passes -DHSE_VALUE with the board setting
+  *          BOARD_HSE_HZ (Board/Inc/board_config.h); board_port.c refuses to
+  *          build if the two differ.
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -35,8 +38,6 @@
 #define HAL_CORTEX_MODULE_ENABLED
 
 /* ########################## HSE/HSI Values adaptation ##################### */
-/* The board setting BOARD_HSE_HZ (Board/Inc/board_config.h); board_port.c refuses to
- * build if the two differ. The Makefile passes -DHSE_VALUE with -DBOARD_HSE_HZ. */
 #if !defined  (HSE_VALUE)
   #define HSE_VALUE    8000000U /*!< Value of the External oscillator in Hz */
 #endif /* HSE_VALUE */

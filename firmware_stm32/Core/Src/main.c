@@ -3,10 +3,11 @@
   ******************************************************************************
   * @file           : main.c
   * @brief          : Main program body of the uavarm manipulator firmware.
-  *                   Peripheral set-up in STM32CubeMX's layout (manipulator.ioc); the
-  *                   portable application (App/) runs from the USER CODE sections only:
-  *                   app_init() after the peripherals, app_poll() in the main loop,
-  *                   app_request_tick() from the TIM3 interrupt at the model's rate.
+  *                   CubeMX writes everything outside the USER CODE sections from
+  *                   manipulator.ioc; the portable application (App/) runs from the
+  *                   USER CODE sections only: the board's clock, app_init() after the
+  *                   peripherals, app_poll() in the main loop, app_request_tick() from
+  *                   the TIM3 interrupt at the model's rate.
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -17,6 +18,7 @@
 /* Private includes ----------------------------------------------------------*/
 /* USER CODE BEGIN Includes */
 #include "app.h"
+#include "board_clock.h"
 #include "board_port.h"
 #include "model_params.h"
 /* USER CODE END Includes */
@@ -28,9 +30,11 @@
 
 /* Private define ------------------------------------------------------------*/
 /* USER CODE BEGIN PD */
-/* TIM2 and TIM3 count microseconds: their APB1 timer clock (2 x PCLK1 = 96 MHz, RM0383
- * 6.2: timers run at twice PCLK1 when APB1 is divided) divided by 96. */
-#define TIMER_US_PRESCALER (BOARD_SYSCLK_HZ / 1000000u - 1u)
+/* The .ioc's user constants (main.h) are the model file's servo baud and tick, written by
+ * make codegen: a main.h regenerated from an older .ioc, or edited, must not build. */
+#if SERVO_BAUD != MODEL_SERVO_BAUD || TICK_PERIOD != MODEL_TICK_US - 1u
+#error "main.h's SERVO_BAUD/TICK_PERIOD are not the model file's: run make codegen, then Generate Code"
+#endif
 /* USER CODE END PD */
 
 /* Private macro -------------------------------------------------------------*/
@@ -86,11 +90,11 @@ int main(void)
 
   /* USER CODE END Init */
 
-  /* Configure the system clock */
-  SystemClock_Config();
-
   /* USER CODE BEGIN SysInit */
-
+  /* The board's clock (Board/Inc/board_config.h: crystal or external clock, its frequency)
+   * in place of SystemClock_Config, whose call the .ioc leaves out: that one has the
+   * .ioc's fixed 8 MHz crystal. */
+  board_clock_config();
   /* USER CODE END SysInit */
 
   /* Initialize all configured peripherals */
@@ -122,7 +126,7 @@ int main(void)
 }
 
 /**
-  * @brief System Clock Configuration: HSE -> PLL -> 96 MHz SYSCLK, 48 MHz USB clock.
+  * @brief System Clock Configuration
   * @retval None
   */
 void SystemClock_Config(void)
@@ -139,13 +143,13 @@ void SystemClock_Config(void)
   * in the RCC_OscInitTypeDef structure.
   */
   RCC_OscInitStruct.OscillatorType = RCC_OSCILLATORTYPE_HSE;
-  RCC_OscInitStruct.HSEState = BOARD_HSE_BYPASS ? RCC_HSE_BYPASS : RCC_HSE_ON;
+  RCC_OscInitStruct.HSEState = RCC_HSE_ON;
   RCC_OscInitStruct.PLL.PLLState = RCC_PLL_ON;
   RCC_OscInitStruct.PLL.PLLSource = RCC_PLLSOURCE_HSE;
-  RCC_OscInitStruct.PLL.PLLM = BOARD_PLL_M;
-  RCC_OscInitStruct.PLL.PLLN = BOARD_PLL_N;
+  RCC_OscInitStruct.PLL.PLLM = 8;
+  RCC_OscInitStruct.PLL.PLLN = 384;
   RCC_OscInitStruct.PLL.PLLP = RCC_PLLP_DIV4;
-  RCC_OscInitStruct.PLL.PLLQ = BOARD_PLL_Q;
+  RCC_OscInitStruct.PLL.PLLQ = 8;
   if (HAL_RCC_OscConfig(&RCC_OscInitStruct) != HAL_OK)
   {
     Error_Handler();
@@ -167,7 +171,7 @@ void SystemClock_Config(void)
 }
 
 /**
-  * @brief I2C1 Initialization Function: the MPU-6050, fast mode 400 kHz.
+  * @brief I2C1 Initialization Function
   * @param None
   * @retval None
   */
@@ -175,7 +179,7 @@ static void MX_I2C1_Init(void)
 {
 
   /* USER CODE BEGIN I2C1_Init 0 */
-
+  /* The MPU-6050, fast mode 400 kHz. */
   /* USER CODE END I2C1_Init 0 */
 
   /* USER CODE BEGIN I2C1_Init 1 */
@@ -201,7 +205,7 @@ static void MX_I2C1_Init(void)
 }
 
 /**
-  * @brief TIM2 Initialization Function: free-running 32-bit microsecond counter.
+  * @brief TIM2 Initialization Function
   * @param None
   * @retval None
   */
@@ -209,7 +213,7 @@ static void MX_TIM2_Init(void)
 {
 
   /* USER CODE BEGIN TIM2_Init 0 */
-
+  /* port.h's microsecond clock: free running over 32 bits, APB1's 96 MHz timer clock / 96. */
   /* USER CODE END TIM2_Init 0 */
 
   TIM_ClockConfigTypeDef sClockSourceConfig = {0};
@@ -219,7 +223,7 @@ static void MX_TIM2_Init(void)
 
   /* USER CODE END TIM2_Init 1 */
   htim2.Instance = TIM2;
-  htim2.Init.Prescaler = TIMER_US_PRESCALER;
+  htim2.Init.Prescaler = 95;
   htim2.Init.CounterMode = TIM_COUNTERMODE_UP;
   htim2.Init.Period = 4294967295;
   htim2.Init.ClockDivision = TIM_CLOCKDIVISION_DIV1;
@@ -246,7 +250,7 @@ static void MX_TIM2_Init(void)
 }
 
 /**
-  * @brief TIM3 Initialization Function: the stabiliser tick, one update per model period.
+  * @brief TIM3 Initialization Function
   * @param None
   * @retval None
   */
@@ -254,7 +258,7 @@ static void MX_TIM3_Init(void)
 {
 
   /* USER CODE BEGIN TIM3_Init 0 */
-
+  /* The stabiliser tick: counts microseconds, one update per model sample period. */
   /* USER CODE END TIM3_Init 0 */
 
   TIM_ClockConfigTypeDef sClockSourceConfig = {0};
@@ -264,9 +268,9 @@ static void MX_TIM3_Init(void)
 
   /* USER CODE END TIM3_Init 1 */
   htim3.Instance = TIM3;
-  htim3.Init.Prescaler = TIMER_US_PRESCALER;
+  htim3.Init.Prescaler = 95;
   htim3.Init.CounterMode = TIM_COUNTERMODE_UP;
-  htim3.Init.Period = MODEL_TICK_US - 1u;
+  htim3.Init.Period = TICK_PERIOD;
   htim3.Init.ClockDivision = TIM_CLOCKDIVISION_DIV1;
   htim3.Init.AutoReloadPreload = TIM_AUTORELOAD_PRELOAD_DISABLE;
   if (HAL_TIM_Base_Init(&htim3) != HAL_OK)
@@ -291,7 +295,7 @@ static void MX_TIM3_Init(void)
 }
 
 /**
-  * @brief USART1 Initialization Function: the servo bus, single-wire half-duplex 8N1.
+  * @brief USART1 Initialization Function
   * @param None
   * @retval None
   */
@@ -299,14 +303,14 @@ static void MX_USART1_UART_Init(void)
 {
 
   /* USER CODE BEGIN USART1_Init 0 */
-
+  /* The servo bus: single-wire half-duplex 8N1 at the model's baud. */
   /* USER CODE END USART1_Init 0 */
 
   /* USER CODE BEGIN USART1_Init 1 */
 
   /* USER CODE END USART1_Init 1 */
   huart1.Instance = USART1;
-  huart1.Init.BaudRate = MODEL_SERVO_BAUD;
+  huart1.Init.BaudRate = SERVO_BAUD;
   huart1.Init.WordLength = UART_WORDLENGTH_8B;
   huart1.Init.StopBits = UART_STOPBITS_1;
   huart1.Init.Parity = UART_PARITY_NONE;
@@ -332,12 +336,11 @@ static void MX_GPIO_Init(void)
 {
   GPIO_InitTypeDef GPIO_InitStruct = {0};
 /* USER CODE BEGIN MX_GPIO_Init_1 */
-
 /* USER CODE END MX_GPIO_Init_1 */
 
   /* GPIO Ports Clock Enable */
-  __HAL_RCC_GPIOC_CLK_ENABLE();
   __HAL_RCC_GPIOH_CLK_ENABLE();
+  __HAL_RCC_GPIOC_CLK_ENABLE();
   __HAL_RCC_GPIOA_CLK_ENABLE();
   __HAL_RCC_GPIOB_CLK_ENABLE();
 
@@ -371,7 +374,6 @@ static void MX_GPIO_Init(void)
   HAL_GPIO_Init(SERVO_PWR_GPIO_Port, &GPIO_InitStruct);
 
 /* USER CODE BEGIN MX_GPIO_Init_2 */
-
 /* USER CODE END MX_GPIO_Init_2 */
 }
 

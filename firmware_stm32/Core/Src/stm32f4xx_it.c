@@ -15,6 +15,37 @@
 #include "board_port.h"
 /* USER CODE END Includes */
 
+/* Private typedef -----------------------------------------------------------*/
+/* USER CODE BEGIN TD */
+
+/* USER CODE END TD */
+
+/* Private define ------------------------------------------------------------*/
+/* USER CODE BEGIN PD */
+
+/* USER CODE END PD */
+
+/* Private macro -------------------------------------------------------------*/
+/* USER CODE BEGIN PM */
+
+/* USER CODE END PM */
+
+/* Private variables ---------------------------------------------------------*/
+/* USER CODE BEGIN PV */
+
+/* USER CODE END PV */
+
+/* Private function prototypes -----------------------------------------------*/
+/* USER CODE BEGIN PFP */
+
+/* USER CODE END PFP */
+
+/* Private user code ---------------------------------------------------------*/
+/* USER CODE BEGIN 0 */
+/* A fault stops the firmware: the servo supply goes off first, so the arm goes limp
+ * instead of holding whatever was last commanded without supervision. */
+/* USER CODE END 0 */
+
 /* External variables --------------------------------------------------------*/
 extern PCD_HandleTypeDef hpcd_USB_OTG_FS;
 extern TIM_HandleTypeDef htim3;
@@ -26,9 +57,6 @@ extern UART_HandleTypeDef huart1;
 /******************************************************************************/
 /*           Cortex-M4 Processor Interruption and Exception Handlers          */
 /******************************************************************************/
-/* A fault stops the firmware: the servo supply goes off first, so the arm goes limp
- * instead of holding whatever was last commanded without supervision. */
-
 /**
   * @brief This function handles Non maskable interrupt.
   */
@@ -165,7 +193,7 @@ void SysTick_Handler(void)
 /******************************************************************************/
 
 /**
-  * @brief This function handles TIM3 global interrupt (the stabiliser tick).
+  * @brief This function handles TIM3 global interrupt.
   */
 void TIM3_IRQHandler(void)
 {
@@ -179,7 +207,7 @@ void TIM3_IRQHandler(void)
 }
 
 /**
-  * @brief This function handles USART1 global interrupt (the servo bus).
+  * @brief This function handles USART1 global interrupt.
   */
 void USART1_IRQHandler(void)
 {

@@ -2,10 +2,12 @@
 /**
   ******************************************************************************
   * @file           : usbd_desc.c
-  * @brief          : USB device descriptors of the manipulator's virtual COM port:
-  *                   ST's virtual COM port VID/PID (the host's CDC-ACM driver binds by
-  *                   class anyway), our names, the chip's unique ID as serial number
-  *                   (so udev rules can name each arm).
+  * @brief          : USB device descriptors of the manipulator's virtual COM port,
+  *                   as CubeMX writes them from manipulator.ioc: ST's virtual COM port
+  *                   VID 0x0483 / PID 0x5740 (the host's CDC-ACM driver binds by class
+  *                   anyway), LANGID English (US), the .ioc's manufacturer and product
+  *                   strings, a serial number from the chip's unique ID (so udev rules
+  *                   can name each arm).
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -19,18 +21,33 @@
 
 /* USER CODE END INCLUDE */
 
-#define USBD_VID                      1155      /* 0x0483, STMicroelectronics */
-#define USBD_LANGID_STRING            1033      /* English (United States) */
-#define USBD_MANUFACTURER_STRING      "uavarm"
-#define USBD_PID_FS                   22336     /* 0x5740, ST virtual COM port */
-#define USBD_PRODUCT_STRING_FS        "uavarm manipulator"
-#define USBD_CONFIGURATION_STRING_FS  "CDC Config"
-#define USBD_INTERFACE_STRING_FS      "CDC Interface"
+/* USER CODE BEGIN PV */
 
+/* USER CODE END PV */
+
+/* USER CODE BEGIN PRIVATE_TYPES */
+
+/* USER CODE END PRIVATE_TYPES */
+
+#define USBD_VID     1155
+#define USBD_LANGID_STRING     1033
+#define USBD_MANUFACTURER_STRING     "uavarm"
+#define USBD_PID_FS     22336
+#define USBD_PRODUCT_STRING_FS     "uavarm manipulator"
+#define USBD_CONFIGURATION_STRING_FS     "CDC Config"
+#define USBD_INTERFACE_STRING_FS     "CDC Interface"
 
 /* USER CODE BEGIN PRIVATE_DEFINES */
 
 /* USER CODE END PRIVATE_DEFINES */
+
+/* USER CODE BEGIN 0 */
+
+/* USER CODE END 0 */
+
+/* USER CODE BEGIN PRIVATE_MACRO */
+
+/* USER CODE END PRIVATE_MACRO */
 
 static void Get_SerialNum(void);
 static void IntToUnicode(uint32_t value, uint8_t * pbuf, uint8_t len);
@@ -126,7 +143,12 @@ uint8_t * USBD_FS_SerialStrDescriptor(USBD_SpeedTypeDef speed, uint16_t *length)
 {
   UNUSED(speed);
   *length = USB_SIZ_STRING_SERIAL;
+
+  /* Update the serial number string descriptor with the data from the unique ID */
   Get_SerialNum();
+  /* USER CODE BEGIN USBD_FS_SerialStrDescriptor */
+
+  /* USER CODE END USBD_FS_SerialStrDescriptor */
   return (uint8_t *) USBD_StringSerial;
 }
 
@@ -144,26 +166,45 @@ uint8_t * USBD_FS_InterfaceStrDescriptor(USBD_SpeedTypeDef speed, uint16_t *leng
   return USBD_StrDesc;
 }
 
-/* The 96-bit unique device ID (RM0383 24.1) as 24 upper-case hex digits. */
+/* Create the serial number string descriptor: the unique ID's first and third words summed
+ * (8 hex digits), then the top of its second word (4 hex digits). */
 static void Get_SerialNum(void)
 {
-  const uint32_t id1 = *(const uint32_t *) DEVICE_ID1;
-  const uint32_t id2 = *(const uint32_t *) DEVICE_ID2;
-  const uint32_t id3 = *(const uint32_t *) DEVICE_ID3;
+  uint32_t deviceserial0;
+  uint32_t deviceserial1;
+  uint32_t deviceserial2;
 
-  IntToUnicode(id1, &USBD_StringSerial[2], 8);
-  IntToUnicode(id2, &USBD_StringSerial[18], 8);
-  IntToUnicode(id3, &USBD_StringSerial[34], 8);
+  deviceserial0 = *(uint32_t *) DEVICE_ID1;
+  deviceserial1 = *(uint32_t *) DEVICE_ID2;
+  deviceserial2 = *(uint32_t *) DEVICE_ID3;
+
+  deviceserial0 += deviceserial2;
+
+  if (deviceserial0 != 0)
+  {
+    IntToUnicode(deviceserial0, &USBD_StringSerial[2], 8);
+    IntToUnicode(deviceserial1, &USBD_StringSerial[18], 4);
+  }
 }
 
-/* value as len hex digits, most significant first, each a UTF-16LE code unit. */
+/* value as len upper-case hex digits, most significant first, each a UTF-16LE unit. */
 static void IntToUnicode(uint32_t value, uint8_t * pbuf, uint8_t len)
 {
-  for (uint8_t idx = 0; idx < len; idx++)
+  uint8_t idx = 0;
+
+  for (idx = 0; idx < len; idx++)
   {
-    const uint8_t digit = (uint8_t)(value >> 28);
-    pbuf[2 * idx] = (uint8_t)(digit < 0xAU ? digit + 0x30U : digit - 0xAU + 0x41U);   /* '0'.., 'A'.. */
+    if (((value >> 28)) < 0xA)
+    {
+      pbuf[2 * idx] = (value >> 28) + '0';
+    }
+    else
+    {
+      pbuf[2 * idx] = (value >> 28) + 'A' - 10;
+    }
+
+    value = value << 4;
+
     pbuf[2 * idx + 1] = 0;
-    value <<= 4;
   }
 }

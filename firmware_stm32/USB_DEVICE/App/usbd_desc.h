@@ -3,6 +3,8 @@
   ******************************************************************************
   * @file           : usbd_desc.h
   * @brief          : USB device descriptors of the manipulator's virtual COM port.
+  *                   The serial number is CubeMX's: 12 hex digits made from the
+  *                   chip's 96-bit unique ID (RM0383 24.1).
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -24,8 +26,11 @@
 #define DEVICE_ID2          (UID_BASE + 0x4U)
 #define DEVICE_ID3          (UID_BASE + 0x8U)
 
-/* 2 header bytes + 24 hex digits of the 96-bit unique ID, in UTF-16 */
-#define USB_SIZ_STRING_SERIAL       0x32U
+#define  USB_SIZ_STRING_SERIAL       0x1A
+
+/* USER CODE BEGIN EXPORTED_CONSTANTS */
+
+/* USER CODE END EXPORTED_CONSTANTS */
 
 /** Descriptor for the Usb device. */
 extern USBD_DescriptorsTypeDef FS_Desc;

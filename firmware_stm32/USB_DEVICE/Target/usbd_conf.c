@@ -4,7 +4,10 @@
   * @file           : usbd_conf.c
   * @brief          : The USB device library's low-level interface (USBD_LL_*) on the
   *                   HAL's PCD driver for the OTG FS core, and the PCD callbacks that
-  *                   feed the library. PA11/PA12, no VBUS sensing (PA9 stays free).
+  *                   feed the library, as CubeMX writes them from manipulator.ioc:
+  *                   PA11/PA12, no VBUS sensing (PA9 stays free), the PHY clock
+  *                   gated while the bus is suspended. USBD_static_malloc/free keep
+  *                   CubeMX's unused parameters (the Makefile allows them here).
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -20,12 +23,27 @@
 
 /* USER CODE END Includes */
 
+/* USER CODE BEGIN PV */
+
+/* USER CODE END PV */
+
 PCD_HandleTypeDef hpcd_USB_OTG_FS;
 void Error_Handler(void);
 
+/* External functions --------------------------------------------------------*/
+void SystemClock_Config(void);
+
+/* USER CODE BEGIN 0 */
+
+/* USER CODE END 0 */
+
 /* USER CODE BEGIN PFP */
-static USBD_StatusTypeDef USBD_Get_USB_Status(HAL_StatusTypeDef hal_status);
+USBD_StatusTypeDef USBD_Get_USB_Status(HAL_StatusTypeDef hal_status);
 /* USER CODE END PFP */
+
+/* USER CODE BEGIN 1 */
+
+/* USER CODE END 1 */
 
 /*******************************************************************************
                        LL Driver Callbacks (PCD -> USB Device Library)
@@ -113,6 +131,8 @@ void HAL_PCD_ResetCallback(PCD_HandleTypeDef *hpcd)
 void HAL_PCD_SuspendCallback(PCD_HandleTypeDef *hpcd)
 {
   USBD_LL_Suspend((USBD_HandleTypeDef*)hpcd->pData);
+  __HAL_PCD_GATE_PHYCLOCK(hpcd);
+  /* Enter in STOP mode. */
   /* USER CODE BEGIN 2 */
   /* No low-power mode: the arm keeps running while the host sleeps. */
   /* USER CODE END 2 */
@@ -170,7 +190,6 @@ USBD_StatusTypeDef USBD_LL_Init(USBD_HandleTypeDef *pdev)
   {
     Error_Handler( );
   }
-  /* FIFO RAM, in 32-bit words (1.25 KB in all): shared receive FIFO, EP0 IN, CDC data IN. */
   HAL_PCDEx_SetRxFiFo(&hpcd_USB_OTG_FS, 0x80);
   HAL_PCDEx_SetTxFiFo(&hpcd_USB_OTG_FS, 0, 0x40);
   HAL_PCDEx_SetTxFiFo(&hpcd_USB_OTG_FS, 1, 0x80);
@@ -257,20 +276,18 @@ void USBD_LL_Delay(uint32_t Delay)
   HAL_Delay(Delay);
 }
 
-/* The CDC class's state, allocated once: no heap. */
 void *USBD_static_malloc(uint32_t size)
 {
-  static uint32_t mem[(sizeof(USBD_CDC_HandleTypeDef)/4)+1];
-  UNUSED(size);
+  static uint32_t mem[(sizeof(USBD_CDC_HandleTypeDef)/4)+1];/* On 32-bit boundary */
   return mem;
 }
 
 void USBD_static_free(void *p)
 {
-  UNUSED(p);
+
 }
 
-static USBD_StatusTypeDef USBD_Get_USB_Status(HAL_StatusTypeDef hal_status)
+USBD_StatusTypeDef USBD_Get_USB_Status(HAL_StatusTypeDef hal_status)
 {
   switch (hal_status)
   {

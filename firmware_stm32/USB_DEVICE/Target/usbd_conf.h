@@ -2,7 +2,10 @@
 /**
   ******************************************************************************
   * @file           : usbd_conf.h
-  * @brief          : Configuration of the USB device library for the OTG FS core.
+  * @brief          : Configuration of the USB device library for the OTG FS core, as
+  *                   CubeMX writes it from manipulator.ioc: self powered (the board's
+  *                   own supply, not the host's VBUS), no debug output, the CDC
+  *                   class's state allocated statically in usbd_conf.c (no heap).
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -30,14 +33,13 @@
 #define USBD_MAX_STR_DESC_SIZ     512U
 #define USBD_DEBUG_LEVEL     0U
 #define USBD_LPM_ENABLED     0U
-/* Powered from the board's own supply, not the host's VBUS. */
 #define USBD_SELF_POWERED     1U
 
 /* #define for FS and HS identification */
 #define DEVICE_FS 		0
 #define DEVICE_HS 		1
 
-/* Static allocation only: the class's state lives in usbd_conf.c. */
+/* Memory management macros make sure to use static memory allocation */
 #define USBD_malloc         (void *)USBD_static_malloc
 #define USBD_free           USBD_static_free
 #define USBD_memset         memset

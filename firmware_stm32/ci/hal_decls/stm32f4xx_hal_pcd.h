@@ -59,7 +59,7 @@ typedef struct {
     void *pData;
 } PCD_HandleTypeDef;
 
-#define PCD_SPEED_FULL 3U                  /* USBD_FS_SPEED */
+#define PCD_SPEED_FULL 2U                  /* USBD_FS_SPEED */
 #define PCD_PHY_EMBEDDED 2U                /* USB_OTG_EMBEDDED_PHY */
 
 HAL_StatusTypeDef HAL_PCD_Init(PCD_HandleTypeDef *hpcd);
@@ -91,5 +91,8 @@ HAL_StatusTypeDef HAL_PCD_EP_ClrStall(PCD_HandleTypeDef *hpcd, uint8_t ep_addr);
 HAL_StatusTypeDef HAL_PCD_EP_Flush(PCD_HandleTypeDef *hpcd, uint8_t ep_addr);
 HAL_StatusTypeDef HAL_PCDEx_SetTxFiFo(PCD_HandleTypeDef *hpcd, uint8_t fifo, uint16_t size);
 HAL_StatusTypeDef HAL_PCDEx_SetRxFiFo(PCD_HandleTypeDef *hpcd, uint16_t size);
+
+/* In the HAL a register-write macro; here it only takes its argument. */
+#define __HAL_PCD_GATE_PHYCLOCK(__HANDLE__) ((void)(__HANDLE__))
 
 #endif

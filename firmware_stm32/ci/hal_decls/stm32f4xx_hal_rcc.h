@@ -66,6 +66,9 @@ HAL_StatusTypeDef HAL_RCC_ClockConfig(RCC_ClkInitTypeDef *RCC_ClkInitStruct, uin
 #define __HAL_RCC_USART1_CLK_ENABLE() ((void)0)
 #define __HAL_RCC_USB_OTG_FS_CLK_ENABLE() ((void)0)
 #define __HAL_RCC_USB_OTG_FS_CLK_DISABLE() ((void)0)
+#define __HAL_RCC_TIM2_CLK_DISABLE() ((void)0)
+#define __HAL_RCC_TIM3_CLK_DISABLE() ((void)0)
+#define __HAL_RCC_USART1_CLK_DISABLE() ((void)0)
 #define __HAL_PWR_VOLTAGESCALING_CONFIG(__REGULATOR__) ((void)(__REGULATOR__))
 
 #endif
