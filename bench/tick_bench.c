@@ -44,8 +44,8 @@ static size_t link_read(void *ctx, uint8_t *buf, size_t cap)
     return take(link_in, link_len, &link_pos, buf, cap);
 }
 static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (void)buf; (void)n; return true; }
-/* The status packet each servo answers a READ with (position 512), built once: composing
- * it is the servo's work, not the firmware's. */
+/* The status packet each servo answers a READ with (configured, at `position`), built when
+ * the goals change: composing it is the servo's work, not the firmware's. */
 static void build_replies(const uint16_t position[SBUS_SERVOS])
 {
     static const uint8_t ids[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
@@ -56,8 +56,10 @@ static void build_replies(const uint16_t position[SBUS_SERVOS])
         r[3] = SBUS_STATUS_LEN + 2;
         r[4] = 0;
         memset(r + 5, 0, SBUS_STATUS_LEN);
-        r[5] = (uint8_t)position[i];
-        r[6] = (uint8_t)(position[i] >> 8);
+        r[5 + 2] = 0xFEu;                                     /* Torque Limit 1022 (address 34) */
+        r[5 + 3] = 0x03u;
+        r[5 + 4] = (uint8_t)position[i];                      /* Present Position (36) */
+        r[5 + 5] = (uint8_t)(position[i] >> 8);
         r[sizeof replies[i] - 1] = dxl_checksum(r + 2, sizeof replies[i] - 3);
     }
 }
@@ -121,7 +123,7 @@ static bool settle(bool (*done)(void))
     return done();
 }
 
-static bool parked(void) { return app.parked; }
+static bool parked(void) { return app.parked && app.stab.samples >= MODEL_IMU_SETTLE_SAMPLES; }
 static bool following(void) { return app.engaged && app.parked && app.motion.arrived; }
 
 /* The arm engaged and following the set position; the servos answer from where they stand

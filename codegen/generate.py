@@ -246,8 +246,8 @@ def estimator_context(m: config.Model):
     raw_step = _function([(f"const float {r_c[i]}", q_raw[i]) for i in range(4)]
                          + [(f"const float b{i}", b_next[i]) for i in range(3)]
                          + [(f"e->rate[{i}]", rate[i]) for i in range(3)],
-                         Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.GATE),
-                         q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "gate"])
+                         Q + B + acc + gyro + (quaternion.K_P, quaternion.K_I, quaternion.GATE, attitude.DT),
+                         q_c + b_c + acc_c + gyro_c + ["k_p", "k_i", "gate", "dt"])
     norm = _function([("const float inv2", 1 / sum(v * v for v in r))], r, r_c, prefix="n")
     q_next, up_next = quaternion.normalised_step(r, inv2)
     unit = _function([(f"const float q{i}", q_next[i]) for i in range(4)] + [(f"up[{i}]", up_next[i]) for i in range(3)],
@@ -283,7 +283,8 @@ def estimator_context(m: config.Model):
                            [f"up[{i}]" for i in range(3)] + [f"rate[{i}]" for i in range(3)] + p_c),
         "tilt": _function([("*roll", tilt[0]), ("*pitch", tilt[1])], acc, acc_c),
         "step": _function([("const float next_roll", step[0]), ("const float next_pitch", step[1])],
-                          (attitude.roll, attitude.pitch) + acc + gyro, ["e->roll", "e->pitch"] + acc_c + gyro_c,
+                          (attitude.roll, attitude.pitch) + acc + gyro + (attitude.DT,),
+                          ["e->roll", "e->pitch"] + acc_c + gyro_c + ["dt"],
                           **angles),
         "to_base": _function([(f"p_base[{i}]", rot[i]) for i in range(3)], p, p_c, **angles),
         "mounting": [[float(v) for v in row] for row in attitude.mounting(m).tolist()],
@@ -345,6 +346,9 @@ def estimator_params(m: config.Model):
         # ticks of history: the longest accepted delay, one more to interpolate, one spare
         "history": int(sp.ceiling(sp.nsimplify(e.link_delay_max, rational=True) * sp.nsimplify(m.sample_rate, rational=True))) + 2,
         "lead_time": float32_literal(e.lead_time),
+        # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
+        "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)
+                                         / sp.nsimplify(max(e.align_accel_gain, 1.0), rational=True))),
     }
 
 
@@ -431,6 +435,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "messages": messages.MESSAGES,
         "faults": messages.FAULTS,
         "states": messages.STATES,
+        "refusals": messages.REFUSALS,
         "types": messages.TYPES,
         "wire_types": messages.wire_types(),
     }

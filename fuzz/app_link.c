@@ -421,6 +421,7 @@ static uint32_t next_tick;
 static void poll_and_check(void)
 {
     app_poll(&APP);
+    app_watch(&APP);
     polls++;
     CHECK(B.power == APP.enabled);
     CHECK(!APP.engaged || APP.enabled);

@@ -31,6 +31,13 @@ def frame(name: str, **fields) -> bytes:
     return llcp.encode(messages.encode(name, **fields))
 
 
+def heartbeat(**given) -> bytes:
+    """A heartbeat payload: the given fields, every other one 0."""
+    fields = {name: 0 for name, _ in messages.BY_NAME["heartbeat"].fields}
+    fields.update(given)
+    return messages.encode("heartbeat", **fields)
+
+
 # ------------------------------------------------------------------ llcp_rx
 
 def llcp_seeds() -> list[bytes]:
@@ -39,10 +46,8 @@ def llcp_seeds() -> list[bytes]:
     enable = frame("enable", on=1)
     setp = frame("set_position", x=70.0, y=-20.0, z=-95.0)
     att = frame("drone_attitude", seq=7, stamp_us=123456, roll=0.1, pitch=-0.05)
-    hb = llcp.encode(messages.encode(
-        "heartbeat", enabled=1, engaged=0, unreachable=0, faults=8, servo1_error=0, servo2_error=0,
-        servo3_error=0, set_x=1.0, set_y=2.0, set_z=-3.0, q1=0.0, q2=1.0, q3=-1.9,
-        link_frames_ok=5, link_errors=1, servo_timeouts=0), llcp.TX_MAX_PAYLOAD)
+    hb = llcp.encode(heartbeat(seq=3, uptime_ms=1500, enabled=1, faults=8, set_x=1.0, set_y=2.0, set_z=-3.0,
+                               q2=1.0, q3=-1.9, link_frames_ok=5, link_errors=1), llcp.TX_MAX_PAYLOAD)
     longest = llcp.encode(bytes(range(255)))
     bad_sum = bytearray(enable)
     bad_sum[-1] = ord("0") if bad_sum[-1] != ord("0") else ord("1")
@@ -166,7 +171,8 @@ class Session:
 
 def app_seeds() -> list[bytes]:
     def started(**kw) -> Session:
-        return Session(**kw).send("enable", on=1).run(0.1, 100000).run(0.08)
+        # servo boot, configuration, then the estimator's settling (engage is refused before)
+        return Session(**kw).send("enable", on=1).run(0.1, 100000).run(0.08).run(0.5, 2500)
 
     engaged = (started().send("set_position", x=70.0, y=-20.0, z=-95.0).send("engage", on=1)
                .run(0.05).tilt(0.2, -0.1, gyro=(30, -20, 5)).run(0.05).send("enable", on=0).run(0.01))
@@ -182,10 +188,7 @@ def app_seeds() -> list[bytes]:
                .send("set_position", x=math.nan, y=0.0, z=-100.0)
                .send("set_position", x=500.0, y=0.0, z=0.0)
                .raw_frame(b"\x10\x01\x02").link(b"b0210xx" + frame("enable", on=1)[:6])
-               .raw_frame(messages.encode(
-                   "heartbeat", enabled=1, engaged=0, unreachable=0, faults=0, servo1_error=0,
-                   servo2_error=0, servo3_error=0, set_x=0.0, set_y=0.0, set_z=0.0, q1=0.0, q2=0.0,
-                   q3=0.0, link_frames_ok=0, link_errors=0, servo_timeouts=0))
+               .raw_frame(heartbeat(enabled=1))                              # an echo
                .run(0.2, 2500).flags(F_IMU_READ_FAIL).run(0.05, 10000)
                .flags(0).imu_reg(117, 0x70).run(1.1, 10000)             # not an MPU-6050
                .flags(F_IMU_WRITE_LOST).imu_reg(117, 0x68).run(1.1, 10000)   # settings do not stick
@@ -202,6 +205,8 @@ def app_seeds() -> list[bytes]:
     stuck = started().send("engage", on=1).run(0.02, 10000)
     for _ in range(33):
         stuck.run(0.01, 10000).servo_reg(0, 36, 0x00).servo_reg(0, 37, 0x03).run(0.005, 2500)
+    # servo 2 browns out: its RAM back at power-up values (torque off, Torque Limit = Max Torque)
+    stuck.servo_reg(1, 24, 0).servo_reg(1, 34, 0xFF).servo_reg(1, 35, 0x03).run(0.05, 2500)
     return [engaged.data, wrap.data, faults.data, refused.data, no_servos.data, imu.data, stuck.data]
 
 

@@ -86,10 +86,14 @@ def euler_rates(m: Model) -> tuple[sp.Expr, sp.Expr]:
             w[1] * sp.cos(roll) - w[2] * sp.sin(roll))
 
 
+DT = sp.Symbol("dt", positive=True)   # s since the previous sample (the stabiliser measures it)
+
+
 def complementary_step(m: Model) -> tuple[sp.Expr, sp.Expr]:
-    """The next (roll, pitch) from the previous (roll, pitch) and one IMU sample."""
+    """The next (roll, pitch) from the previous (roll, pitch) and one IMU sample taken DT
+    after the previous one."""
     w = sp.nsimplify(m.complementary_gyro_weight, rational=True)
-    dt = 1 / sp.nsimplify(m.sample_rate, rational=True)
+    dt = DT
     acc_roll, acc_pitch = tilt_from_accel(m)
     rate_roll, rate_pitch = euler_rates(m)
     return (w * (roll + rate_roll * dt) + (1 - w) * acc_roll,

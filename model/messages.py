@@ -48,16 +48,36 @@ MESSAGES = (
     Message("drone_attitude", 0x13, "to_arm",
             (("seq", "u16"), ("stamp_us", "u32"), ("roll", "f32"), ("pitch", "f32")),
             "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
-            "seq counts up by one per message, stamp_us is the drone's clock. Any valid frame "
-            "keeps the link alive; fusing it into the estimate is the closed-loop issue's job"),
+            "seq counts up by one per message, stamp_us is the drone's clock. Like every frame sent "
+            "to the arm it keeps the link alive; it is not yet fused into the arm's estimate"),
     Message("heartbeat", 0x20, "to_drone", (
-        ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"), ("state", "u8"),
+        ("seq", "u16"), ("uptime_ms", "u32"),
+        ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"), ("state", "u8"), ("refusal", "u8"),
         ("faults", "u16"),
         ("servo1_error", "u8"), ("servo2_error", "u8"), ("servo3_error", "u8"),
         ("set_x", "f32"), ("set_y", "f32"), ("set_z", "f32"),
         ("q1", "f32"), ("q2", "f32"), ("q3", "f32"),
-        ("link_frames_ok", "u16"), ("link_errors", "u16"), ("servo_timeouts", "u16"),
-    ), "every 500 ms: state, set position, joint angles (rad), fault flags and counters"),
+        ("link_frames_ok", "u16"), ("link_errors", "u16"), ("link_echoes", "u16"), ("servo_timeouts", "u16"),
+        ("servo_resets", "u16"), ("ticks_late", "u16"), ("ticks_missed", "u16"),
+        ("bus_state", "u8"), ("reset_cause", "u8"), ("firmware", "u32"), ("model", "u32"),
+        ("servo1_voltage", "u8"), ("servo1_temperature", "u8"), ("servo1_load", "u16"),
+        ("servo2_voltage", "u8"), ("servo2_temperature", "u8"), ("servo2_load", "u16"),
+        ("servo3_voltage", "u8"), ("servo3_temperature", "u8"), ("servo3_load", "u16"),
+    ), "every 500 ms: sequence number and uptime, state, set position, joint angles (rad), fault flags, "
+       "counters, the bus and reset state, firmware and model identity, each servo's supply (0.1 V), "
+       "temperature (deg C) and load (AX-12A units, bit 10 = direction)"),
+)
+
+# heartbeat.refusal: why the last refused command was refused
+REFUSALS = (
+    ("none", "nothing refused since the last command taken"),
+    ("not_enabled", "engage while the servo power is off"),
+    ("servos_starting", "engage while the servos boot and are configured"),
+    ("servo_fault", "engage while a servo does not answer, reports an error, or was found reset"),
+    ("imu_not_ready", "engage before the IMU has given usable samples for the estimator to settle"),
+    ("servo_tracking", "engage while a servo does not follow its goal"),
+    ("no_route", "engage or set_position with no clear route there"),
+    ("not_finite", "set_position with a NaN or infinite coordinate"),
 )
 
 # heartbeat.state: what the arm is doing, in order of a session
@@ -80,13 +100,16 @@ FAULTS = (
     ("link_lost", "the link fell silent while engaged, so the arm parked (latched until engage)"),
     ("out_of_reach", "at the current tilt the set position is out of the branch's reach: the arm holds "
                      "the nearest point it reaches (or its last goal)"),
-    ("command_refused", "the last command was refused: engage while disabled or while the imu or "
-                        "servo_tracking fault stands, or a non-finite target"),
+    ("command_refused", "the last engage or set_position was refused; heartbeat.refusal says why"),
     ("imu_saturated", "an IMU sample since the last heartbeat had an axis at full scale; it was not used"),
     ("servo_tracking", "a servo's shaft has not followed its goal as its speed allows (stuck, drifting "
                        "or limp): an engaged arm parks, engage is refused until it tracks again"),
     ("motion_blocked", "a move would sweep through a joint limit, the body or a leg: a set position or "
                        "engage with no clear route was refused, or a step was stopped and the arm holds"),
+    ("servo_reset", "a servo was found with its torque off (a brown-out resets it): configured again, "
+                    "an engaged arm parks (latched until engage)"),
+    ("timing", "the tick interrupt stopped (ticks are run from the microsecond clock) or the clock "
+               "stopped (servo power cut)"),
 )
 
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from .attitude import ACC, GYRO, P_LEVEL, mounting
+from .attitude import ACC, DT, GYRO, P_LEVEL, mounting
 from .config import Model
 
 Q = sp.symbols("qw qx qy qz", real=True)          # current estimate
@@ -139,7 +139,7 @@ def step_unnormalised(m: Model):
     u = up_of(Q)
     e = a.cross(u)
     g = GATE                      # accel_gate(m), computed first (keeps the expressions small)
-    dt = 1 / _rat(m.sample_rate)
+    dt = DT                       # s since the previous sample (the stabiliser measures it)
     b = sp.Matrix(BIAS)
     w = w_m - b + K_P * g * e
     q_raw = qmul(Q, delta(tuple(c * dt for c in w)))

@@ -303,6 +303,16 @@ def running(board: SimBoard) -> bool:
     return len(board.commands) > 0 and board.servo_power
 
 
+# Engage waits for the estimator to settle on the IMU's samples since power-up: one time
+# constant of its alignment gain, at most 1 s (the model's align_accel_gain).
+IMU_SETTLE_S = 1.0 / max(MODEL.estimator.align_accel_gain, 1.0)
+
+
+def ready(board: SimBoard) -> bool:
+    """Running, and the IMU sampled long enough since power-up for engage to be taken."""
+    return running(board) and board.time >= IMU_SETTLE_S + 2 * TICK
+
+
 def last_hb(board: SimBoard) -> dict:
     assert board.heartbeats, "no heartbeat yet"
     return board.heartbeats[-1]

@@ -71,7 +71,7 @@ class Build:
         self.lib.est_set(self.e, *state)
         self.acc[0:3] = [float(v) for v in acc]
         self.gyro[0:3] = [float(v) for v in gyro]
-        self.lib.est_complementary_step(self.e, self.acc, self.gyro)
+        self.lib.est_complementary_step(self.e, self.acc, self.gyro, self.dt)
         return self.e.roll, self.e.pitch
 
 
@@ -321,7 +321,7 @@ def test_one_gyro_step_integrates_rate_times_dt(build):
 
 
 def test_step_matches_sympy_at_30_digits(build):
-    syms = (attitude.roll, attitude.pitch) + attitude.ACC + attitude.GYRO
+    syms = (attitude.roll, attitude.pitch) + attitude.ACC + attitude.GYRO + (attitude.DT,)
     f = sp.lambdify(syms, list(attitude.complementary_step(build.m)), modules="mpmath")
     rng = np.random.default_rng(25)
     worst = worst_rel = 0.0
@@ -331,7 +331,7 @@ def test_step_matches_sympy_at_30_digits(build):
             acc = f32(rng.normal(size=3) * 10 ** rng.uniform(-2, 4))
             gyro = f32(rng.normal(size=3) * rng.choice([0.1, 1.0, 10.0]))
             got = build.step(state, acc, gyro)
-            exact = f(*(mp.mpf(float(v)) for v in (*state, *acc, *gyro)))
+            exact = f(*(mp.mpf(float(v)) for v in (*state, *acc, *gyro, f32(build.dt))))
             _, tol = reference_step(build, state, acc, gyro)
             for i in range(2):
                 err = abs(math.remainder(float(exact[i] - mp.mpf(got[i])), 2 * math.pi))   # C wraps
@@ -373,7 +373,7 @@ def test_attitude_always_finite(gen, roll, pitch, samples):
         gyro[0:3] = [v * GYRO_LSB_2000 for v in g]
         lib.est_tilt_from_accel(acc, *out)
         assert all(math.isfinite(o[0]) and abs(o[0]) <= math.pi + 1e-6 for o in out)
-        lib.est_complementary_step(e, acc, gyro)
+        lib.est_complementary_step(e, acc, gyro, 0.01)   # (a 100 Hz period: finiteness is the point)
         assert math.isfinite(e.roll) and math.isfinite(e.pitch)
         lib.est_level_to_base(e, p, q)
         assert all(math.isfinite(v) for v in q)
@@ -392,7 +392,7 @@ def test_sustained_full_scale_gyro_stays_finite(gen):
             acc[0:3] = a
             gyro[0:3] = [s * g for s in signs]
             for _ in range(2000):
-                lib.est_complementary_step(e, acc, gyro)
+                lib.est_complementary_step(e, acc, gyro, 0.01)   # (a 100 Hz period: finiteness is the point)
                 worst = max(worst, abs(e.roll), abs(e.pitch))
             assert math.isfinite(e.roll) and math.isfinite(e.pitch)
     print(f"full-scale gyro for 20 s: largest |angle| {worst:.6f} rad")

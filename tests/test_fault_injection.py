@@ -21,7 +21,7 @@ import pytest
 
 from invariants import Invariants
 from simboard_tools import (
-    FAULT, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, running,
+    FAULT, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, ready, running,
     shaft_units, sync_goal_speed,
 )
 from uavarm import ax12_sim, llcp, messages
@@ -52,7 +52,7 @@ def engaged_board(p=TARGET, **kw):
     board = make_board(**kw)
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
-    assert inv.run_until(lambda: running(board), 0.3) is not None
+    assert inv.run_until(lambda: ready(board), 1.0) is not None
     set_position(board, p)
     board.send("engage", on=1)
     assert inv.run_until(lambda: at(board, p), 1.0) is not None
@@ -198,7 +198,7 @@ def engaged_faulty(j, **servo_kw):
     board = SimBoard(MODEL, servos=faulty_board(j, **servo_kw))
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
-    assert inv.run_until(lambda: running(board), 0.3) is not None
+    assert inv.run_until(lambda: ready(board), 1.0) is not None
     set_position(board, TARGET)
     board.send("engage", on=1)
     assert inv.run_until(lambda: at(board, TARGET), 1.0) is not None
@@ -345,11 +345,12 @@ def test_imu_i2c_loss_while_engaged(ticks):
     answers again the flag clears and engage works."""
     board, inv = engaged_board()
     stale = board.lib.APP_IMU_STALE_TICKS
+    n = len(board.heartbeats)
     board.hp.imu_present = False
     inv.run(ticks * TICK, step=TICK)
     board.hp.imu_present = True
     keep_alive(inv, TARGET, 0.6)
-    hbs = board.heartbeats[-2:]
+    hbs = board.heartbeats[n:]
     if ticks < stale:
         assert all(hb["engaged"] == 1 and not hb["faults"] & FAULT["imu"] for hb in hbs), hbs
         assert board.app.imu_errors == ticks
@@ -581,8 +582,8 @@ DELAYS = [0.0, 0.05, 0.25]   # right away, during the servos' boot, after config
 
 def expected(state, cmd, servos_run):
     """SPEC.md's states: (enabled, engaged) after a command. enable 1 when enabled changes
-    nothing; engage 1 is refused unless enabled with its servos configured (`servos_run`:
-    the first SYNC_WRITE is out)."""
+    nothing; engage 1 is refused unless enabled with its servos configured and the IMU
+    settled (`servos_run`: simboard_tools.ready)."""
     enabled, engaged = state
     name, on = cmd
     if name == "enable":
@@ -603,7 +604,7 @@ def test_every_order_of_enable_engage_disable(delay):
         set_position(board, TARGET)
         state = (False, False)
         for cmd in seq:
-            servos_run = running(board)
+            servos_run = ready(board)
             if cmd == ("enable", 0):
                 inv.disable()
             else:

@@ -65,7 +65,7 @@ def test_seed_corpus_replays_clean(runner, name):
 def test_app_link_seeds_reach_every_state(runner):
     """The seeds drive the application through configuration into the engaged, stabilising
     state, through disable, link loss, IMU faults (absent, asleep, full scale) and servo
-    faults (errors, configuration, a stuck shaft): the fuzzer starts deep."""
+    faults (errors, configuration, a stuck shaft, a brown-out): the fuzzer starts deep."""
     exe = runner.build("app_link")
     seeds = sorted(p for p in (runner.SEEDS / "app_link").iterdir() if p.is_file())
     proc = subprocess.run([str(exe), *map(str, seeds)], capture_output=True, text=True,
@@ -81,8 +81,8 @@ def test_app_link_seeds_reach_every_state(runner):
     faults = 0
     for s in lines:
         faults |= int(s["faults"], 16)
-    # servo_error, servo_config, imu, link_lost, imu_saturated, servo_tracking: each reached
-    names = ("servo_error", "servo_config", "imu", "link_lost", "imu_saturated", "servo_tracking")
+    # servo_error, servo_config, imu, link_lost, imu_saturated, servo_tracking, servo_reset: each reached
+    names = ("servo_error", "servo_config", "imu", "link_lost", "imu_saturated", "servo_tracking", "servo_reset")
     want = sum(1 << i for i, (name, _) in enumerate(FAULTS) if name in names)
     assert faults & want == want, hex(faults)
 

@@ -18,7 +18,7 @@ import pytest
 
 from invariants import Invariants
 from simboard_tools import FAULT, MODEL, PARK_UNITS, UNIT_RAD, BusLog, level_ik_ok, make_board, pose_ok, \
-    shaft_units, units_to_joints
+    ready, shaft_units, units_to_joints
 from uavarm.board import Gravity, Rocking
 
 DEG_PER_UNIT = math.degrees(UNIT_RAD)
@@ -34,7 +34,7 @@ def engaged(p=None, motion=None, at=None):
     board = make_board(motion=motion, at=at)
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
-    inv.run(0.3)
+    assert inv.run_until(lambda: ready(board), 1.0) is not None
     if p is not None:
         set_position(board, p)
     board.send("engage", on=1)

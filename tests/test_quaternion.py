@@ -93,14 +93,16 @@ def test_quaternion_step_matches_the_sympy_model(fw):
             .astype(np.float32)
         g = rng.uniform(-8.0, 8.0, 3).astype(np.float32)         # up to the +-500 deg/s range
         k_p, k_i, inn = np.float32(rng.uniform(0, 5)), np.float32(rng.uniform(0, 2)), np.float32(rng.choice([0, 365]))
+        dt = np.float32(rng.uniform(0.004, 0.03))               # measured: the IMU's clock is not the tick's
         e.q[0:4] = [float(v) for v in q]
         e.bias[0:3] = [float(v) for v in b]
         acc[0:3] = [float(v) for v in a]
         gyro[0:3] = [float(v) for v in g]
-        lib.est_quat_step(e, acc, gyro, float(k_p), float(k_i), float(inn), up)
+        lib.est_quat_step(e, acc, gyro, float(k_p), float(k_i), float(inn), float(dt), up)
         got = list(e.q) + list(e.bias) + list(e.rate) + list(up)
         subs = dict(zip(quaternion.Q, q)) | dict(zip(quaternion.BIAS, b)) | dict(zip(attitude.ACC, a)) \
-            | dict(zip(attitude.GYRO, g)) | {quaternion.K_P: k_p, quaternion.K_I: k_i, quaternion.INNOVATION: inn}
+            | dict(zip(attitude.GYRO, g)) | {quaternion.K_P: k_p, quaternion.K_I: k_i, quaternion.INNOVATION: inn,
+                                             attitude.DT: dt}
         want = model_step({s: float(v) for s, v in subs.items()})
         err = max(abs(x - y) for x, y in zip(got, want))
         worst = max(worst, err)
@@ -135,7 +137,7 @@ def test_gyro_integration_matches_scipy_rotation(fw, rate_dps):
         gyro[0:3] = [float(v) for v in np.float32(w)]
         n = round(1.0 / DT)
         for _ in range(n):
-            lib.est_quat_step(e, acc, gyro, 0.0, 0.0, 0.0, up)
+            lib.est_quat_step(e, acc, gyro, 0.0, 0.0, 0.0, 1.0 / MODEL.sample_rate, up)
         truth = start * Rotation.from_rotvec(np.float32(w).astype(float) * n * DT)   # body-frame rate
         err = (truth.inv() * _rot(list(e.q))).magnitude()
         # 4th-order exp: |theta|^5 / 1920 per step (5e-9 rad at 500 deg/s) + float32 rounding
@@ -281,7 +283,7 @@ def test_accelerometer_magnitude_gate(fw):
         e.q[0:4] = [1.0, 0.0, 0.0, 0.0]
         e.bias[0:3] = [0.0, 0.0, 0.0]
         acc[0:3] = [float(v) for v in off * scale]
-        lib.est_quat_step(e, acc, gyro, 2.0, 0.5, 0.0, up)
+        lib.est_quat_step(e, acc, gyro, 2.0, 0.5, 0.0, 1.0 / MODEL.sample_rate, up)
         assert (abs(e.q[1]) > 1e-4) == moves, (scale, list(e.q))
 
 

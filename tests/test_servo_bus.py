@@ -13,14 +13,15 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from simboard_tools import (
     FAULT, IDS, INST_READ, INST_SYNC_WRITE, INST_WRITE, MODEL, PARK_SPEED, PARK_UNITS, TICK,
-    UNIT_RANGE, BusLog, make_board, run_until, run_to_next_heartbeat, running, sdk_rebuild,
+    UNIT_RANGE, BusLog, make_board, run_until, run_to_next_heartbeat, ready, running, sdk_rebuild,
     servo_c, sync_goal_speed,
 )
 from uavarm.board import baud_register
 
 # AX12_FACTS.md control table
-ADDR = {"return_delay_time": 5, "cw_angle_limit": 6, "status_return_level": 16,
-        "torque_enable": 24, "goal_position": 30, "torque_limit": 34, "present_position": 36}
+ADDR = {"return_delay_time": 5, "cw_angle_limit": 6, "temperature_limit": 11, "status_return_level": 16,
+        "shutdown": 18, "torque_enable": 24, "goal_position": 30, "moving_speed": 32, "torque_limit": 34, "present_position": 36,
+        "present_temperature": 43}
 OVERLOAD = 0x20
 RETURN_DELAY = MODEL.servo_return_delay_us // 2
 
@@ -29,23 +30,35 @@ def le16(v: int) -> bytes:
     return int(v).to_bytes(2, "little")
 
 
-def expected_config_writes(j: int) -> set[tuple[int, bytes]]:
-    """(address, data) of every WRITE the brief asks for at enable, joint j."""
+def wanted_registers(j: int) -> set[tuple[int, bytes]]:
+    """(address, data) of what the servo of joint j must hold once configured: Status Return
+    Level 1, Return Delay Time, angle limits = the joint limits, Torque Enable, Torque Limit one
+    below Max Torque (1022: a servo whose RAM reset has it back at Max Torque, told apart by
+    the running reads), and the AX-12A's factory safety values (e-manual: Highest Limit
+    Temperature 70 deg C, voltage 6.0-14.0 V, Max Torque 1023, Alarm Shutdown 0x24)."""
     cw, ccw = UNIT_RANGE[j]
     return {
         (ADDR["status_return_level"], bytes([1])),
         (ADDR["return_delay_time"], bytes([RETURN_DELAY])),
         (ADDR["cw_angle_limit"], le16(cw) + le16(ccw)),
-        (ADDR["torque_limit"], le16(1023)),
+        (ADDR["temperature_limit"], bytes([70, 60, 140]) + le16(1023)),
+        (ADDR["shutdown"], bytes([0x24])),
+        (ADDR["torque_limit"], le16(1022)),
         (ADDR["torque_enable"], bytes([1])),
     }
+
+
+def expected_config_writes(j: int, table: bytes) -> set[tuple[int, bytes]]:
+    """The wanted registers that the servo's table (as it was before enable) does not hold:
+    nothing else is written (the EEPROM wears)."""
+    return {(a, d) for a, d in wanted_registers(j) if table[a:a + len(d)] != d}
 
 
 def enabled_board(**kw):
     board = make_board(**kw)
     log = BusLog(board)
     board.send("enable", on=1)
-    assert run_until(board, lambda: running(board), 0.3) is not None
+    assert run_until(board, lambda: ready(board), 1.0) is not None
     return board, log
 
 
@@ -54,6 +67,7 @@ def enabled_board(**kw):
 def test_power_on_boot_wait_and_configuration():
     board = make_board(at=[512, 512, 512])   # factory-fresh RAM: SRL 2, return delay 500 us
     log = BusLog(board)
+    before = [bytes(board.bus.servo(i).table) for i in IDS]
     board.run(0.05)
     assert not board.servo_power and not log.tx, "nothing before enable"
     t_enable = board.time
@@ -75,22 +89,20 @@ def test_power_on_boot_wait_and_configuration():
     assert [p.id for p in cfg] == [p.id for group in per_servo for p in group], "servos interleaved"
     for j, group in enumerate(per_servo):
         writes = [p for p in group if p.inst == INST_WRITE]
-        assert {(p.params[0], p.params[1:]) for p in writes} == expected_config_writes(j)
-        assert len(writes) == 5
-        read = group[-1]
-        assert read.inst == INST_READ and len(group) == 6, "one read-back, after the writes"
-        addr, n = read.params
-        assert addr <= 5 and addr + n >= 36, "the read-back covers every register written"
+        assert {(p.params[0], p.params[1:]) for p in writes} == expected_config_writes(j, before[j])
+        assert len(writes) == len(expected_config_writes(j, before[j]))
+        first, read = group[0], group[-1]
+        assert first.inst == INST_READ and read.inst == INST_READ and len(group) == len(writes) + 2, \
+            "what the servo holds read first, the writes, one read-back"
+        for pkt in (first, read):
+            addr, n = pkt.params
+            assert addr <= 5 and addr + n >= 44, "the reads cover every register written and the status"
     print(f"configuration: {len(cfg)} packets, {sum(len(p.raw) for p in cfg)} bytes, "
           f"{(cfg[-1].end - cfg[0].start) * 1e3:.2f} ms")
 
     for j, id_ in enumerate(IDS):
-        s = board.bus.servo(id_)
-        assert s.register("status_return_level") == 1
-        assert s.register("return_delay_time") == RETURN_DELAY
-        assert (s.register("cw_angle_limit"), s.register("ccw_angle_limit")) == UNIT_RANGE[j]
-        assert s.register("torque_limit") == 1023
-        assert s.register("torque_enable") == 1
+        table = board.bus.servo(id_).table
+        assert all(table[a:a + len(d)] == d for a, d in wanted_registers(j))
     # the servos' own verdict: no instruction since the configuration gave an error
     assert all(p.raw[4] == 0 for p in log.replies), [p.raw.hex(" ") for p in log.replies if p.raw[4]]
 
@@ -142,12 +154,18 @@ def test_disable_stops_all_traffic_and_reenable_configures_again():
     # bytes may still be on the wire from before the cut, none start after it
     assert not [p for p in log.tx if p.start > board.power_log[-1][0]]
     n = len(log.tx)
+    eeprom_before = [servo_c(board, j).eeprom_writes for j in range(3)]
+    assert all(eeprom_before), "the first enable wrote the EEPROM (factory values differ)"
     board.send("enable", on=1)
     board.run(0.2)
     t_on = board.power_log[-1][0]
     again = log.tx[n:]
     assert again[0].start - t_on >= MODEL.servo_boot_time - 1e-9
-    assert [p.inst for p in again[:6]] == [INST_WRITE] * 5 + [INST_READ]
+    # the EEPROM holds the configuration already: read, the RAM's Torque Limit and Torque
+    # Enable again (power-up reset them), read back
+    assert [(p.inst, p.params[0]) for p in again[:4]] == [(INST_READ, 5), (INST_WRITE, ADDR["torque_limit"]),
+                                                          (INST_WRITE, ADDR["torque_enable"]), (INST_READ, 5)]
+    assert [servo_c(board, j).eeprom_writes for j in range(3)] == eeprom_before, "no EEPROM written again"
 
 
 # ---------------------------------------------------------------- running traffic
@@ -169,10 +187,12 @@ def test_each_tick_one_sync_write_and_one_round_robin_read():
         assert sync.id == 0xFE
         goal, speed = sync_goal_speed(sync.raw)
         assert goal == [round(u) for u in PARK_UNITS] and speed == [PARK_SPEED] * 3
-        assert read.params == bytes([ADDR["present_position"], 8])
+        # Moving Speed .. Present Temperature: a servo reset by a supply dip shows Torque
+        # Limit back at Max Torque
+        assert read.params == bytes([ADDR["moving_speed"], ADDR["present_temperature"] + 1 - ADDR["moving_speed"]])
         read_ids.append(read.id)
         replies = [r for r in log.replies if sync.start <= r.start < (k + 1) * TICK]
-        assert len(replies) == 1 and replies[0].raw[2] == read.id and replies[0].raw[3] == 8 + 2
+        assert len(replies) == 1 and replies[0].raw[2] == read.id and replies[0].raw[3] == 12 + 2
         reply = replies[0]
         stats.append((len(sync.raw) + len(read.raw), len(reply.raw), (reply.end - sync.start) * 1e6))
     first = IDS.index(read_ids[0])
@@ -252,7 +272,7 @@ def test_servo_silent_during_configuration_cuts_power_and_latches():
     assert [on for _, on in board.power_log] == [True, False]
     t_off = board.power_log[-1][0]
     verify_reads = [p for p in log.reads() if p.id == IDS[2]]
-    assert len(verify_reads) == 3, "three configuration attempts"
+    assert len(verify_reads) == 6, "three configuration attempts, each a read before and a read back"
     assert not log.syncs(), "no command to an unconfigured bus"
     assert not [p for p in log.tx if p.start > t_off]
     print(f"\nconfiguration given up {(t_off - board.power_log[0][0]) * 1e3:.1f} ms after power on")

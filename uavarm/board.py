@@ -105,11 +105,17 @@ class SimBoard:
     (uavarm.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
     gives the base frame's attitude(t) and imu(t) in base axes; the board turns the latter
     into the IMU's axes with the model's mounting rotation and the sensor model samples it
-    at the chip's internal rate."""
+    at the chip's internal rate.
+
+    Faults of the board itself, for the tests: imu_clock_error, how far the IMU's own clock
+    runs from the tick's (0.02: 2 % fast; 0: a sample just before every tick); and the
+    attributes tick_interrupt (False: the tick timer's interrupt stops), clock_frozen (True:
+    the firmware's microsecond clock stops) and link_echo (True: every byte the board sends
+    on the link comes back to it, as through a terminal that echoes)."""
 
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
                  poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True,
-                 sensor: Mpu6050Sensor | None = None):
+                 sensor: Mpu6050Sensor | None = None, imu_clock_error: float = 0.0):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -128,6 +134,12 @@ class SimBoard:
         self.tick_us = round(US / m.sample_rate)
         self.now_us = 0                       # simulated time since start
         self._next_tick = self.tick_us
+        self.imu_period_us = self.tick_us / (1.0 + imu_clock_error)
+        self._next_sample = self.tick_us - (self.imu_period_us if imu_clock_error else 0.0)
+        self.tick_interrupt = True
+        self.clock_frozen = False
+        self.link_echo = False
+        self._frozen_at = 0
         self._power = False
         self._link = llcp.Decoder(expected_len=lambda i: messages.BY_ID[i].size if i in messages.BY_ID else -1)
         self.heartbeats: list[dict] = []
@@ -174,13 +186,17 @@ class SimBoard:
         if rx:
             self.servo_rx_bytes += len(rx)
             self.lib.host_port_servo_push(self.hp, rx, len(rx))
-        if self.now_us >= self._next_tick:
-            self._next_tick += self.tick_us
+        if self.now_us >= self._next_sample:       # the chip latches a sample on its own clock
+            self._next_sample += self.imu_period_us
             accel, gyro = self.sensor.read(self.time, self._imu_truth, self.imu.dlpf_cfg, self.imu.smplrt_div)
             self.imu.sample(accel, gyro)
-            self.lib.app_request_tick(self.app)
+        if self.now_us >= self._next_tick:
+            self._next_tick += self.tick_us
+            if self.tick_interrupt:
+                self.lib.app_request_tick(self.app)
         self._clock()
         self.lib.app_poll(self.app)
+        self.lib.app_watch(self.app)
         self._collect()
 
     def _imu_truth(self, t: float):
@@ -189,7 +205,9 @@ class SimBoard:
         return self._base_to_imu @ np.asarray(accel, dtype=float), self._base_to_imu @ np.asarray(gyro, dtype=float)
 
     def _clock(self) -> None:
-        self.hp.now_us = (self.start_us + self.now_us) & 0xFFFFFFFF
+        if not self.clock_frozen:
+            self._frozen_at = self.now_us
+        self.hp.now_us = (self.start_us + self._frozen_at) & 0xFFFFFFFF
 
     def _collect(self) -> None:
         if self.hp.servo_power != self._power:
@@ -210,6 +228,8 @@ class SimBoard:
         if n:
             data = bytes(self.ffi.buffer(buf, n))
             self.link_out += data
+            if self.link_echo:
+                self.send_bytes(data)
             for payload in self._link.feed(data, self.time):
                 name, fields = messages.decode(payload)
                 if name == "heartbeat":

@@ -28,10 +28,11 @@ def demo(args) -> int:
 
 
 def _heartbeat_line(hb) -> str:
-    from .messages import fault_names
+    from .messages import REFUSALS, fault_names, state_name
     q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
-    from .messages import state_name
-    return (f"{state_name(hb['state'])}: enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
+    refused = f" refused {REFUSALS[hb['refusal']][0]}" if 0 < hb["refusal"] < len(REFUSALS) else ""
+    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{refused}: "
+            f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
             f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "
             f"faults {fault_names(hb['faults'])} servo errors "
             f"{[hb[f'servo{i}_error'] for i in (1, 2, 3)]} link frames {hb['link_frames_ok']} "

@@ -11,6 +11,11 @@ heartbeat shows the command took effect, raises CommandRefused when the board's 
 why it did not, and LinkSilent when no heartbeat comes at all. An engaged arm parks if the
 link is silent for the model's link.silence_timeout, so a drone keeps sending: `keep_alive()`
 repeats the current set position (only while no new target is being set).
+
+Only fresh heartbeats count: each carries a sequence number and the board's uptime, and one
+that arrives more than a heartbeat period later than the board's clock says it should (queued
+while no one read the port) is dropped and counted, never used to confirm a command. Gaps in
+the sequence and board restarts (uptime going back) are counted too.
 """
 from __future__ import annotations
 
@@ -20,10 +25,12 @@ import time
 from collections import deque
 
 from . import llcp, messages
-from .messages import fault_names
+from .messages import fault_names, refusal_reason
 
 # a command is judged on the heartbeats that follow it: the first may predate it
 CONFIRM_HEARTBEATS = 2
+# bytes taken from the port in one poll at most (about 400 heartbeats)
+READ_LIMIT = 65536
 
 
 class LinkError(Exception):
@@ -55,6 +62,58 @@ def _expected_len(msg_id: int) -> int:
     return m.size if m is not None else -1
 
 
+class HeartbeatAge:
+    """Sequence and age checks of the heartbeats, from their seq and uptime_ms fields.
+
+    The age of a heartbeat is how much later than the freshest one it arrived, measured on the
+    board's clock: arrival time minus uptime, less the least such value seen. The least value
+    may rise by DRIFT per second, so clocks 1,000 ppm apart do not age fresh heartbeats."""
+
+    DRIFT = 1e-3
+
+    def __init__(self, period: float):
+        self.period = period
+        self.floor = None          # the least (arrival - uptime) seen, s
+        self.floor_at = 0.0
+        self.last = None           # (seq, uptime_ms, board time in s) of the last heartbeat
+        self.lost = 0              # heartbeats missing from the sequence
+        self.stale = 0             # heartbeats dropped as older than one period
+        self.restarts = 0          # the board's uptime went back: it restarted
+
+    def fresh(self, batch: list[dict], now: float) -> list[dict]:
+        """The heartbeats of one read that are at most one period old, each with its 'age' (s)."""
+        if not batch:
+            return []
+        offsets = [now - self._board_time(hb) for hb in batch]
+        if self.floor is not None:
+            self.floor += self.DRIFT * (now - self.floor_at)
+        self.floor = min(offsets) if self.floor is None else min(self.floor, min(offsets))
+        self.floor_at = now
+        kept = []
+        for hb, offset in zip(batch, offsets):
+            hb["age"] = offset - self.floor
+            if hb["age"] > self.period:
+                self.stale += 1
+            else:
+                kept.append(hb)
+        return kept
+
+    def _board_time(self, hb: dict) -> float:
+        """The board's uptime in s, counted on past the 49.7-day wrap of uptime_ms; counts
+        sequence gaps and restarts on the way."""
+        if self.last is not None:
+            seq, uptime, board_time = self.last
+            step = (hb["uptime_ms"] - uptime) & 0xFFFFFFFF
+            if step < 1 << 31:
+                self.lost += (hb["seq"] - seq - 1) & 0xFFFF
+                self.last = (hb["seq"], hb["uptime_ms"], board_time + step / 1000.0)
+                return self.last[2]
+            self.restarts += 1
+            self.floor = None              # a new clock: ages start over
+        self.last = (hb["seq"], hb["uptime_ms"], hb["uptime_ms"] / 1000.0)
+        return self.last[2]
+
+
 class ArmLink:
     """port: a device path (or a pyserial URL, or an open serial object for tests); silence:
     seconds without a heartbeat that count as a dead link (default: three heartbeat periods
@@ -62,9 +121,10 @@ class ArmLink:
 
     def __init__(self, port, baud: int = 115200, *, silence: float | None = None):
         import serial
+        from .model import config
+        period = config.load().heartbeat_period
         if silence is None:
-            from .model import config
-            silence = 3 * config.load().heartbeat_period
+            silence = 3 * period
         if isinstance(port, str):
             try:
                 self.serial = serial.serial_for_url(port, baudrate=baud, timeout=0)
@@ -73,6 +133,7 @@ class ArmLink:
         else:
             self.serial = port
         self.silence = silence
+        self.age = HeartbeatAge(period)
         self.decoder = llcp.Decoder(gap=0.1, expected_len=_expected_len)
         self.heartbeats: deque[dict] = deque(maxlen=100)
         self.bytes_received = 0
@@ -90,25 +151,33 @@ class ArmLink:
     # ---------------------------------------------------------------- receiving
 
     def poll(self) -> list[dict]:
-        """The heartbeats received since the last call (non-blocking)."""
-        data = self.serial.read(4096)
+        """The fresh heartbeats received since the last call, oldest first (non-blocking)."""
+        data = b""
+        while len(data) < READ_LIMIT:     # all that is queued, so a batch's newest dates the rest
+            chunk = self.serial.read(4096)
+            if not chunk:
+                break
+            data += chunk
         self.bytes_received += len(data)
-        new = []
-        for payload in self.decoder.feed(data, time.monotonic()):
+        now = time.monotonic()
+        batch = []
+        for payload in self.decoder.feed(data, now):
             name, fields = messages.decode(payload)
             if name == "heartbeat":
-                self.heartbeats.append(fields)
-                new.append(fields)
+                batch.append(fields)
+        new = self.age.fresh(batch, now)
+        self.heartbeats.extend(new)
         return new
 
     def next_heartbeat(self, timeout: float | None = None) -> dict:
-        """Wait for the next heartbeat; LinkSilent (or LinkGarbled) if none comes in time."""
+        """Wait for the next fresh heartbeat (the newest if several came at once); LinkSilent
+        (or LinkGarbled) if none comes in time."""
         timeout = self.silence if timeout is None else timeout
         start_bytes, end = self.bytes_received, time.monotonic() + timeout
         while True:
             new = self.poll()
             if new:
-                return new[0]
+                return new[-1]
             if time.monotonic() > end:
                 if self.bytes_received > start_bytes:
                     raise LinkGarbled(f"{self.bytes_received - start_bytes} bytes in {timeout:.1f} s but no "
@@ -155,6 +224,8 @@ class ArmLink:
         def why(hb):
             if on and not hb["enabled"]:
                 return "engage refused: the arm is not enabled (enable it first)"
+            if on and hb["refusal"]:
+                return f"engage refused: {refusal_reason(hb['refusal'])}; faults {fault_names(hb['faults'])}"
             return f"engage {int(on)} not taken; faults {fault_names(hb['faults'])}"
         return self._confirm(lambda hb: hb["engaged"] == int(on), why)
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import struct
 
-from .model.messages import FAULTS, MESSAGES, STATES, Message
+from .model.messages import FAULTS, MESSAGES, REFUSALS, STATES, Message
 
 BY_NAME = {m.name: m for m in MESSAGES}
 BY_ID = {m.id: m for m in MESSAGES}
@@ -47,3 +47,8 @@ def fault_names(bits: int) -> list[str]:
 def state_name(value: int) -> str:
     """The name of a heartbeat state value (model/messages.py STATES)."""
     return STATES[value][0] if 0 <= value < len(STATES) else f"unknown state {value}"
+
+
+def refusal_reason(value: int) -> str:
+    """What a heartbeat refusal value says (model/messages.py REFUSALS)."""
+    return REFUSALS[value][1] if 0 <= value < len(REFUSALS) else f"unknown refusal {value}"

@@ -6,7 +6,8 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   (uavarm_ros/SetPosition: x, y, z in metres, REP 103). Each answers once a heartbeat shows
   the command taken (uavarm.link.ArmLink), or success false with the board's reason: "engage
   refused: the arm is not enabled", "... refused: unreachable ...", "no heartbeat ...".
-- `~status` (uavarm_ros/ArmStatus): every heartbeat as received. A message of this package
+- `~status` (uavarm_ros/ArmStatus): every fresh heartbeat (the link drops those queued longer
+  than a heartbeat period; a board restart is logged as a warning). A message of this package
   rather than diagnostic_msgs key/value strings, so consumers get typed fields (flags, joints,
   set position, counters) and the fault bits by name; primitive fields only, because Debian's
   ROS packages ship no .msg sources to build a std_msgs/Header from. New fault bits (for
@@ -45,7 +46,7 @@ import time
 from pathlib import Path
 
 from .link import ArmLink, CommandRefused, LinkError, LinkGarbled, LinkSilent, PortNotFound
-from .messages import FAULTS, fault_names
+from .messages import FAULTS, REFUSALS, fault_names
 
 PACKAGE = "uavarm_ros"
 ROOT = Path(__file__).resolve().parents[1]
@@ -216,7 +217,7 @@ class SharedLink(ArmLink):
                     raise LinkGarbled(f"{self.bytes_received - start_bytes} bytes in {timeout:.1f} s but no "
                                       "valid heartbeat: wrong baud or device?")
                 raise LinkSilent(f"no heartbeat for {timeout:.1f} s: is the board powered and the port right?")
-            return self.heartbeats[len(self.heartbeats) - (self.count - start)]
+            return self.heartbeats[-1]
 
     def set_position(self, x: float, y: float, z: float) -> dict:
         try:
@@ -309,7 +310,7 @@ class ArmNode:
             self._reopen_at = now + self.REOPEN_PERIOD
             return
         self.link_error = None
-        self._last_hb_time, self._silent = now, False
+        self._last_hb_time, self._silent, self._restarts = now, False, 0
         self.rospy.loginfo("arm: %s open", self.port)
 
     def _lose(self, exc, now: float) -> None:
@@ -370,6 +371,9 @@ class ArmNode:
         if self._silent:
             rospy.loginfo("arm: heartbeats back")
         self._silent, self._last_hb_time = False, now
+        if self.link.age.restarts > self._restarts:
+            self._restarts = self.link.age.restarts
+            rospy.logwarn("arm: the board restarted (its uptime went back to %.1f s)", hb["uptime_ms"] / 1000.0)
         names = fault_names(hb["faults"])
         before = set() if self._last_hb is None else set(fault_names(self._last_hb["faults"]))
         for name in names:
@@ -380,7 +384,8 @@ class ArmNode:
         m = self.msg.ArmStatus()
         m.stamp = rospy.Time.now()
         m.enabled, m.engaged, m.unreachable = bool(hb["enabled"]), bool(hb["engaged"]), bool(hb["unreachable"])
-        m.state = hb["state"]
+        m.seq, m.uptime, m.state = hb["seq"], hb["uptime_ms"] / 1000.0, hb["state"]
+        m.refusal = REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else ""
         m.faults, m.fault_names = hb["faults"], names
         m.servo_errors = [hb["servo1_error"], hb["servo2_error"], hb["servo3_error"]]
         m.set_position = [hb["set_x"] / 1000.0, hb["set_y"] / 1000.0, hb["set_z"] / 1000.0]

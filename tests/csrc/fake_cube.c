@@ -52,6 +52,7 @@ void fake_cube_usb_strings(void)
 void app_init(app_t *app, const port_t *port) { (void)app; (void)port; }
 void app_poll(app_t *app) { (void)app; cube.reached_main_loop = 1; longjmp(boot, 1); }
 void app_request_tick(app_t *app) { (void)app; }
+void app_watch(app_t *app) { (void)app; }
 const port_t *board_port_start(void) { return NULL; }
 void board_port_poll(void) { }
 void board_servo_power_off(void) { }

@@ -43,7 +43,9 @@ extern "C" {
 #endif
 
 /* cffi:begin */
+#define APP_FIRMWARE_VERSION 0x000300u   /* 0.3.0: major, minor, patch bytes (the heartbeat's "firmware") */
 #define APP_IMU_RETRY_MS 1000
+#define APP_CLOCK_STALL_TICKS 3        /* ticks in a row with the microsecond clock standing still */
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
 #define APP_LINK_BYTES_PER_POLL 256    /* a flood of link bytes cannot starve the tick */
 
@@ -59,7 +61,10 @@ typedef struct {
     bool engaged;
     bool unreachable;              /* the last set_position was refused as unreachable */
     bool out_of_reach;             /* this tick's tilt put the set position out of reach */
-    bool refused;                  /* the last command was refused */
+    bool refused;                  /* the last command was refused ... */
+    uint8_t refusal;               /* ... and why (MSG_REFUSAL_*) */
+    bool servo_reset;              /* a servo was found reset (latched until engage or enable) */
+    bool timing_fault;             /* the clock stood still: power cut (latched until enable) */
     bool motion_refused;           /* no clear route for the last move asked (until the next) */
     bool parked;                   /* the arm has been at the park pose since enable */
     bool link_lost;                /* latched until engage */
@@ -83,9 +88,18 @@ typedef struct {
     uint32_t link_ms;              /* the link receiver's millisecond clock (wraps at 2^32 ms) */
     uint32_t link_ms_base_us;      /* the microsecond time link_ms was last advanced to */
     uint32_t last_heartbeat_us;
+    uint16_t heartbeat_seq;        /* the next heartbeat's number */
     uint32_t heartbeats_sent;
     uint32_t heartbeats_dropped;   /* the link's transmit queue was full */
     uint32_t commands_ignored;     /* valid frames of messages the arm does not take */
+    uint32_t link_echoes;          /* frames with the board's own heartbeat id: an echo, not life */
+    uint32_t servo_resets;         /* servos found reset and configured again */
+    uint32_t last_tick_us;         /* when the last tick ran */
+    uint32_t ticks_late;           /* ticks run from the clock because the tick interrupt was late */
+    uint8_t clock_stalls;          /* ticks in a row with the clock standing still */
+    bool tick_due;                 /* app_watch found the tick interrupt late: app_poll ticks */
+    uint8_t led_ticks;             /* ticks since the LEDs were last set */
+    uint8_t reset_cause;           /* set by the board after app_init: why the chip last reset */
     uint32_t drone_attitudes;      /* drone_attitude frames received */
 } app_t;
 
@@ -93,6 +107,12 @@ void app_init(app_t *app, const port_t *port);
 /* ISR-safe: asks for one stabiliser tick. */
 void app_request_tick(app_t *app);
 void app_poll(app_t *app);
+/* Supervision, from the main loop after app_poll(): a tick interrupt late by half a period
+ * is made up from the clock by the next app_poll() (counted, flagged "timing"). (Three ticks
+ * with the clock standing still cut the servo power: nothing can be timed.) */
+void app_watch(app_t *app);
+/* Is the loop healthy (ticks running, the clock moving)? The board feeds its watchdog only then. */
+bool app_healthy(const app_t *app);
 /* The goal to send after `sent` (the last goal sent): motion.c's proposal (following target,
  * tilted base frame, mm, unless NULL), checked with kin_check_move, offered smaller while
  * refused, `sent` again if nothing passes; the speed of its step. command_servos' core. */

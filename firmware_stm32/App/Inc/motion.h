@@ -91,9 +91,28 @@ motion_speed_t motion_tick(motion_t *m, const float *target, bool pinned, float 
 /* The step refused: a smaller one in q_next (half, a quarter, then joint 1 alone and joints
  * 2-3 alone); false when there is none left to offer (the arm then holds). */
 bool motion_smaller(motion_t *m, float q_next[3]);
-/* The goal the application sent this tick (the proposal, a smaller step, or the last goal). */
-void motion_done(motion_t *m, const float q[3]);
 /* cffi:end */
+
+/* The corner or aim the arm heads for now. */
+static inline const float *motion_destination(const motion_t *m)
+{
+    return m->next_via < m->vias ? m->via[m->next_via] : m->aim;
+}
+
+/* The goal the application sent this tick (the proposal, a smaller step, or the last goal).
+ * (Inline: every tick calls it.) */
+static inline void motion_done(motion_t *m, const float q[3])
+{
+    const float *dest = motion_destination(m);
+    const bool there = q[0] == dest[0] && q[1] == dest[1] && q[2] == dest[2];
+    m->blocked = !there && q[0] == m->q[0] && q[1] == m->q[1] && q[2] == m->q[2];
+    if (m->blocked) m->blocked_steps++;
+    if (there) {
+        if (m->next_via < m->vias) m->next_via++;
+        else m->arrived = true;
+    }
+    for (int i = 0; i < 3; ++i) m->q[i] = q[i];
+}
 
 #ifdef __cplusplus
 }

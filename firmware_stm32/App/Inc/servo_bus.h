@@ -4,20 +4,25 @@
  *   OFF --power on--> BOOTING --boot time--> CONFIGURING --verified--> RUNNING
  *                                                 '--3 failed attempts--> FAILED
  *
- * CONFIGURING writes, to each servo: Status Return Level 1 (answer reads only), Return
- * Delay Time, CW/CCW Angle Limits (the joint limits in servo units, so the servo itself
- * also refuses a goal outside them), Torque Limit 1023 (undoes an overload shutdown) and
- * Torque Enable 1; then reads them back, with the status registers (the servo's position
- * before anything moves it). Writes are sent whether or not the servo still
- * answers them (a servo fresh from the factory has level 2), so the driver waits for an
- * optional status packet after each one and only the read-back decides.
+ * CONFIGURING, each servo: reads what it holds (addresses 5..43), writes what differs of
+ * Status Return Level 1 (answer reads only), Return Delay Time, CW/CCW Angle Limits (the joint
+ * limits in servo units, so the servo itself also refuses a goal outside them), the safety
+ * registers (temperature and voltage limits, Max Torque 1023, Alarm Shutdown: servo_bus.c),
+ * Torque Limit 1022 (undoes an overload shutdown; one below Max Torque, which a servo that
+ * lost its RAM comes back with) and Torque Enable 1, and reads it all back, with
+ * the status registers (the servo's position before anything moves it). The EEPROM is
+ * written only where it differs. Writes are sent whether or not the servo still answers
+ * them (a servo fresh from the factory has level 2), so the driver waits for an optional
+ * status packet after each one and only the read-back decides.
  *
  * RUNNING, for every sbus_command(): one broadcast SYNC_WRITE of goal position and moving
- * speed to all servos (no reply), then one READ of present position, speed, load, voltage
- * and temperature from one servo, round robin, so a tick's bus time stays bounded
- * (sbus_tick_bus_time_us()). A read that times out or arrives corrupted is retried at the
- * next command, up to SBUS_READ_RETRIES times, then the servo is marked failed for
- * this round and the next servo is read.
+ * speed to all servos (no reply), then one READ of moving speed .. present temperature from
+ * one servo, round robin, so a tick's bus time stays bounded (sbus_tick_bus_time_us()). A
+ * read that times out or arrives corrupted is retried at the next command, up to
+ * SBUS_READ_RETRIES times, then the servo is marked failed for this round and the next
+ * servo is read. A servo read with its Torque Limit back at Max Torque has lost its RAM (a
+ * supply dip resets it, torque off): one WRITE sets it up again, holding where it stands,
+ * before the next READ, and it is counted (resets).
  *
  * Received bytes are matched to the request by servo id and parameter count, so the
  * master's own echo (a single-wire UART hears itself) and stray packets are ignored. The
@@ -42,8 +47,8 @@ extern "C" {
 #define SBUS_SERVOS 3
 #define SBUS_READ_RETRIES 1
 #define SBUS_CONFIG_ATTEMPTS 3
-#define SBUS_STATUS_ADDR 36        /* present position .. present temperature */
-#define SBUS_STATUS_LEN 8
+#define SBUS_STATUS_ADDR 32        /* moving speed .. present temperature: a servo that lost its */
+#define SBUS_STATUS_LEN 12         /* RAM (torque limit back at Max Torque) is seen at its next reading */
 #define SBUS_VERIFY_ADDR 5         /* return delay .. present temperature: the configuration */
 #define SBUS_VERIFY_LEN 39         /* and the first status reading (where the arm is) */
 #define SBUS_TX_MAX 32
@@ -75,6 +80,8 @@ typedef struct {
     uint16_t error_packets;        /* status packets with any error bit set */
     uint16_t error_bits[7];        /* ... per bit: voltage, angle limit, overheating, range,
                                       checksum, overload, instruction */
+    uint16_t resets;               /* readings with its torque off while running (a brown-out) */
+    uint16_t eeprom_writes;        /* EEPROM registers written at configurations */
 } sbus_servo_t;
 
 typedef struct {
@@ -101,8 +108,13 @@ typedef struct {
     dxl_parser_t parser;
     /* configuration */
     uint8_t cfg_servo;
-    uint8_t cfg_step;
+    uint8_t cfg_step;              /* read, write, verify */
+    uint8_t cfg_mask;              /* the writes still to send */
     uint8_t cfg_attempt;
+    uint8_t refit;                 /* servos found reset, to configure again (bits) */
+    uint32_t resets;               /* servos found reset, in all */
+    bool refitting;                /* that write is on the wire */
+    uint32_t refits;
     /* running */
     bool command_pending;
     bool read_due;

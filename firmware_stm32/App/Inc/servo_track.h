@@ -6,7 +6,8 @@
  *   it was sent and, since the servo's previous reading, it moved toward that goal by less
  *   than TRACK_MIN_PROGRESS of what its Moving Speed allows (or of the distance left);
  *   the fault stands once readings have not tracked for TRACK_FAULT_US in a row, and
- *   clears at the first reading that tracks.
+ *   clears once they have tracked for as long (a goal that sweeps past a stuck shaft on
+ *   its way does not clear it).
  *
  * A healthy AX-12A moves at its Moving Speed (no load: ~0.111 rpm per unit, AX-12A
  * e-manual) until it is within its compliance margin of the goal, so it passes easily;
@@ -34,7 +35,8 @@ typedef struct {
     uint16_t reads_seen;           /* the driver's read counter when last looked at */
     uint16_t last_position;        /* units, at the previous reading */
     uint32_t last_us;
-    uint32_t bad_us;               /* how long its readings have not tracked */
+    uint32_t bad_us;               /* how long its readings have not tracked ... */
+    uint32_t good_us;              /* ... or have, since the fault stood */
     bool have_last;
     bool fault;
 } track_servo_t;

@@ -19,6 +19,7 @@ extern "C" {
 
 /* cffi:begin */
 #define STAB_HISTORY 32            /* ticks of attitude history, at least the model's link_delay_max */
+#define STAB_DT_MAX_PERIODS 4u     /* the longest time one sample is integrated over, in periods */
 
 /* Why a drone_attitude message was refused (stab_drone_attitude). */
 typedef enum {
@@ -38,6 +39,9 @@ typedef struct {
     float up[3];                   /* the estimate's up direction, base axes */
     float rate[3];                 /* body rate for the lead, base axes, rad/s */
     bool started;                  /* a first sample has set filters and attitude */
+    uint32_t samples;              /* samples taken since the reset (saturates) */
+    uint32_t last_sample_us;       /* when the previous one was taken */
+    uint32_t gaps;                 /* samples more than 1.5 periods after the previous one */
     /* the quaternion after each sample, and the time of that sample (for the link) */
     float hist_q[STAB_HISTORY][4];
     uint32_t hist_us[STAB_HISTORY];

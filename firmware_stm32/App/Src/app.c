@@ -65,10 +65,27 @@ static void set_enabled(app_t *app, bool on)
     app->motion.started = false;   /* where the arm is comes from the servos' first readings */
     app->motion_refused = false;
     app->parked = false;
-    if (on) app->servo_config_failed = false;
+    if (on) {
+        app->servo_config_failed = false;
+        app->servo_reset = false;
+        app->timing_fault = false;
+    }
     track_reset(&app->track);   /* readings from before a power cycle say nothing */
     sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
     show_state(app);
+}
+
+/* A command refused, and why (the heartbeat's refusal). */
+static void refuse(app_t *app, uint8_t why)
+{
+    app->refused = true;
+    app->refusal = why;
+}
+
+static void taken(app_t *app)
+{
+    app->refused = false;
+    app->refusal = MSG_REFUSAL_NONE;
 }
 
 /* Back to the park pose at park speed, by a route clear of limits, body and legs. */
@@ -93,38 +110,62 @@ static void on_set_position(app_t *app, const msg_set_position_t *m)
     const float p[3] = { m->x, m->y, m->z };
     float q[3];
     if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]))) {
-        app->refused = true;
+        refuse(app, MSG_REFUSAL_NOT_FINITE);
         return;
     }
-    app->refused = false;
+    taken(app);
     app->unreachable = !motion_goal_for(&app->motion, p, q);   /* from a level base, with the goals' margin */
     if (app->unreachable) return;
     /* a repeated set position (keep-alive) changes nothing; a new one, engaged, needs a route */
     const bool moved = memcmp(p, app->set_position, sizeof p) != 0;
     if (moved && app->engaged && !head_for(app, p)) {
-        app->refused = true;
+        refuse(app, MSG_REFUSAL_NO_ROUTE);
         return;
     }
     memcpy(app->set_position, p, sizeof p);
     app->set_on_axis = motion_on_axis(p);
 }
 
-/* Engage: only with servos that report where they are, an attitude and servos that follow.
- * The arm parks first if it has not since enable (the working speed never moves it from
- * where it hung), then heads for the set position by a clear route. */
+/* Why engage would be refused now, or MSG_REFUSAL_NONE: it needs the servos configured,
+ * answering and error-free, the estimator settled on the IMU's samples and servos that
+ * follow their goals. */
+static uint8_t not_ready(const app_t *app)
+{
+    if (!app->enabled) return MSG_REFUSAL_NOT_ENABLED;
+    if (!app->motion.started) return MSG_REFUSAL_SERVOS_STARTING;
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        const sbus_servo_t *s = &app->bus.servo[i];
+        if (s->failed || s->last_error) return MSG_REFUSAL_SERVO_FAULT;
+    }
+    if (app->bus.refit || app->bus.refitting) return MSG_REFUSAL_SERVO_FAULT;
+    if (!imu_usable(app) || app->stab.samples < MODEL_IMU_SETTLE_SAMPLES) return MSG_REFUSAL_IMU_NOT_READY;
+    if (track_fault(&app->track)) return MSG_REFUSAL_SERVO_TRACKING;
+    return MSG_REFUSAL_NONE;
+}
+
+/* Engage when ready (not_ready). The arm parks first if it has not since enable (the
+ * working speed never moves it from where it hung), then heads for the set position by a
+ * clear route. */
 static void on_engage(app_t *app, bool on)
 {
-    app->refused = false;
+    taken(app);
     if (!on) {
         if (app->engaged) disengage(app);
         return;
     }
     if (app->engaged) return;
-    app->refused = !app->enabled || !app->motion.started || !imu_usable(app) || track_fault(&app->track)
-                   || (app->parked && !head_for(app, app->set_position));
-    if (app->refused) return;
+    const uint8_t why = not_ready(app);
+    if (why != MSG_REFUSAL_NONE) {
+        refuse(app, why);
+        return;
+    }
+    if (app->parked && !head_for(app, app->set_position)) {
+        refuse(app, MSG_REFUSAL_NO_ROUTE);
+        return;
+    }
     app->engaged = true;
     app->link_lost = false;
+    app->servo_reset = false;
 }
 
 static void on_frame(app_t *app, const uint8_t *payload, size_t len)
@@ -133,9 +174,12 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     msg_engage_t engage;
     msg_set_position_t set;
     msg_drone_attitude_t attitude;
-    app->last_frame_us = now_us(app);
+    if (len > 0 && payload[0] == MSG_HEARTBEAT_ID) {
+        app->link_echoes++;   /* the board's own output come back: not the drone, not life */
+        return;
+    }
     if (msg_enable_unpack(payload, len, &enable)) {
-        app->refused = false;
+        taken(app);
         set_enabled(app, enable.on != 0);
     } else if (msg_engage_unpack(payload, len, &engage)) {
         on_engage(app, engage.on != 0);
@@ -147,7 +191,9 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
                                   now_us(app));
     } else {
         app->commands_ignored++;
+        return;
     }
+    app->last_frame_us = now_us(app);   /* a message from the drone: the link is alive */
 }
 
 /* A millisecond clock for the link receiver that wraps at 2^32 ms like llcp.h expects.
@@ -284,20 +330,56 @@ static void hold_faults(app_t *app, bool imu_usable_now, bool tracking_fault)
 /* LEDs are for people: refreshed at a tenth of the tick rate (and at enable / disable). */
 #define LED_EVERY_TICKS 10u
 
+/* A servo found reset (servo_bus.c sets it up again, holding where it stands): the arm
+ * parks from where it is now, the reset servos where they read, the others at their goals;
+ * engage again once it is set up. */
+static void watch_resets(app_t *app)
+{
+    uint16_t units[SBUS_SERVOS];
+    float measured[3], q[3];
+    if (app->bus.resets == app->servo_resets) return;
+    app->servo_resets = app->bus.resets;
+    app->servo_reset = true;
+    app->engaged = false;
+    app->parked = false;
+    if (!app->motion.started) return;   /* (starts from the readings anyway) */
+    for (int i = 0; i < SBUS_SERVOS; ++i) units[i] = app->bus.servo[i].present_position;
+    servo_units_to_joints(units, measured);
+    for (int i = 0; i < SBUS_SERVOS; ++i) q[i] = app->bus.refit & (1u << i) ? measured[i] : app->q_cmd[i];
+    if (!motion_start(&app->motion, q)) {
+        app->motion_refused = true;   /* a pose we cannot check a way out of: hold it */
+        return;
+    }
+    memcpy(app->q_cmd, q, sizeof q);
+    if (!motion_go(&app->motion, PARK)) app->motion_refused = true;
+}
+
 static void tick(app_t *app)
 {
     mpu_sample_t imu;
     const bool sampled = sample_imu(app, &imu);
     const uint32_t now = now_us(app);   /* after the IMU transfer: the sample's time */
+    /* the clock must move from tick to tick, or no timeout works: cut the servo power */
+    if (now != app->last_tick_us || app->ticks_run <= 1u) {
+        app->clock_stalls = 0;
+    } else if (++app->clock_stalls >= APP_CLOCK_STALL_TICKS && app->enabled) {
+        set_enabled(app, false);
+        app->timing_fault = true;
+    }
+    app->last_tick_us = now;
     if (sampled) stab_sample(&app->stab, imu.accel_g, imu.gyro_rad_s, now, app->engaged);
     const bool tracking = track_update(&app->track, &app->bus, now);
+    watch_resets(app);
     const bool usable = imu_usable(app);
     if (app->engaged && (!usable || tracking)) {
         disengage(app);   /* park: no attitude to stabilise with, or a servo not following */
     }
     if (app->enabled) command_servos(app);
     hold_faults(app, usable, tracking);
-    if (app->ticks_run % LED_EVERY_TICKS == 0u) show_state(app);
+    if (++app->led_ticks >= LED_EVERY_TICKS) {
+        app->led_ticks = 0;
+        show_state(app);
+    }
 }
 
 /* ------------------------------------------------------------------ heartbeat */
@@ -316,6 +398,8 @@ uint16_t app_faults(const app_t *app)
     if (app->link_lost) f |= MSG_FAULT_LINK_LOST;
     if (app->out_of_reach) f |= MSG_FAULT_OUT_OF_REACH;
     if (app->refused) f |= MSG_FAULT_COMMAND_REFUSED;
+    if (app->servo_reset) f |= MSG_FAULT_SERVO_RESET;
+    if (app->timing_fault) f |= MSG_FAULT_TIMING;
     if (app->motion_refused || app->motion.blocked) f |= MSG_FAULT_MOTION_BLOCKED;
     return f;
 }
@@ -353,10 +437,13 @@ static void send_heartbeat(app_t *app)
     uint32_t timeouts = 0;
     for (int i = 0; i < SBUS_SERVOS; ++i) timeouts += app->bus.servo[i].timeouts;
     current_joints(app, q);
+    hb.seq = app->heartbeat_seq++;
+    hb.uptime_ms = link_ms(app);
     hb.enabled = app->enabled;
     hb.engaged = app->engaged;
     hb.unreachable = app->unreachable;
     hb.state = arm_state(app);
+    hb.refusal = app->refusal;
     hb.faults = (uint16_t)(app_faults(app) | app->faults_since_heartbeat);
     hb.servo1_error = app->bus.servo[0].last_error;
     hb.servo2_error = app->bus.servo[1].last_error;
@@ -371,7 +458,25 @@ static void send_heartbeat(app_t *app)
     hb.link_frames_ok = (uint16_t)rx->frames_ok;
     hb.link_errors = (uint16_t)(rx->checksum_errors + rx->hex_errors + rx->length_errors
                                 + rx->unknown_ids + rx->timeouts + rx->restarts);
+    hb.link_echoes = (uint16_t)app->link_echoes;
     hb.servo_timeouts = (uint16_t)timeouts;
+    hb.servo_resets = (uint16_t)app->servo_resets;
+    hb.ticks_late = (uint16_t)app->ticks_late;
+    hb.ticks_missed = (uint16_t)app->ticks_missed;
+    hb.bus_state = (uint8_t)app->bus.state;
+    hb.reset_cause = app->reset_cause;
+    hb.firmware = APP_FIRMWARE_VERSION;
+    hb.model = MODEL_SHA32;
+    const sbus_servo_t *s = app->bus.servo;
+    hb.servo1_voltage = s[0].present_voltage;
+    hb.servo1_temperature = s[0].present_temperature;
+    hb.servo1_load = s[0].present_load;
+    hb.servo2_voltage = s[1].present_voltage;
+    hb.servo2_temperature = s[1].present_temperature;
+    hb.servo2_load = s[1].present_load;
+    hb.servo3_voltage = s[2].present_voltage;
+    hb.servo3_temperature = s[2].present_temperature;
+    hb.servo3_load = s[2].present_load;
     size_t len = msg_heartbeat_pack(&hb, payload, sizeof payload);
     size_t n = llcp_encode_tx(payload, len, frame, sizeof frame);
     if (n > 0 && app->port->link_write(app->port->ctx, (const uint8_t *)frame, n)) {
@@ -384,14 +489,30 @@ static void send_heartbeat(app_t *app)
 
 /* ------------------------------------------------------------------ main loop */
 
+void app_watch(app_t *app)
+{
+    /* the tick interrupt late by half a period: the tick runs from the clock */
+    if (!app->tick_due && now_us(app) - app->last_tick_us >= MODEL_TICK_US + MODEL_TICK_US / 2u) {
+        app->ticks_late++;
+        app->faults_since_heartbeat |= MSG_FAULT_TIMING;
+        app->tick_due = true;   /* app_poll runs it */
+    }
+}
+
+bool app_healthy(const app_t *app)
+{
+    return app->clock_stalls == 0 && now_us(app) - app->last_tick_us < 2u * MODEL_TICK_US;
+}
+
 void app_poll(app_t *app)
 {
     read_link(app);
 
     uint32_t requested = app->ticks_requested;
-    if (requested != app->ticks_run) {
-        app->ticks_missed += requested - app->ticks_run - 1u;
+    if (requested != app->ticks_run || app->tick_due) {
+        if (requested != app->ticks_run) app->ticks_missed += requested - app->ticks_run - 1u;
         app->ticks_run = requested;
+        app->tick_due = false;
         tick(app);
     }
 

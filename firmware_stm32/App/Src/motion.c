@@ -16,14 +16,11 @@
  * real obstacle, not the bound's slack. */
 #define ROUTE_PIECE_MIN 0.005f
 
-static float largest_change(const float a[3], const float b[3])
+static inline float largest_change(const float a[3], const float b[3])
 {
-    float big = 0.0f;
-    for (int i = 0; i < 3; ++i) {
-        const float d = fabsf(b[i] - a[i]);
-        if (d > big) big = d;
-    }
-    return big;
+    const float d0 = fabsf(b[0] - a[0]), d1 = fabsf(b[1] - a[1]), d2 = fabsf(b[2] - a[2]);
+    const float d01 = d0 > d1 ? d0 : d1;
+    return d01 > d2 ? d01 : d2;
 }
 
 /* Is the straight joint-space move a -> b clear? Checked piece by piece, each piece as long
@@ -172,11 +169,6 @@ static inline void follow(motion_t *m, const float p_base[3], bool pinned)
 static const float TRY_SHARE[4] = { 0.5f, 0.25f, 1.0f, 1.0f };
 static const uint8_t TRY_JOINTS[4] = { 7u, 7u, 1u, 6u };
 
-static const float *destination(const motion_t *m)
-{
-    return m->next_via < m->vias ? m->via[m->next_via] : m->aim;
-}
-
 motion_speed_t motion_tick(motion_t *m, const float *target, bool pinned, float q_next[3])
 {
     static const float STEP[3] = { MODEL_PARK_STEP, MODEL_TRANSIT_STEP, MODEL_WORKING_STEP };
@@ -186,7 +178,7 @@ motion_speed_t motion_tick(motion_t *m, const float *target, bool pinned, float 
         speed = m->arrived ? MOTION_WORKING_SPEED : MOTION_TRANSIT_SPEED;
     }
     /* one step toward the next corner or the aim, all joints in proportion */
-    const float *dest = destination(m);
+    const float *dest = motion_destination(m);
     const float big = largest_change(m->q, dest), max_step = STEP[speed];
     m->tries = 0;
     if (big > max_step) {
@@ -202,28 +194,10 @@ motion_speed_t motion_tick(motion_t *m, const float *target, bool pinned, float 
 bool motion_smaller(motion_t *m, float q_next[3])
 {
     if (m->tries >= 4) return false;
-    const float *dest = destination(m);
+    const float *dest = motion_destination(m);
     const int t = m->tries++;
     for (int i = 0; i < 3; ++i) {
         q_next[i] = TRY_JOINTS[t] & (1u << i) ? m->q[i] + m->share * TRY_SHARE[t] * (dest[i] - m->q[i]) : m->q[i];
     }
     return true;
-}
-
-static bool same(const float a[3], const float b[3])
-{
-    return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
-}
-
-void motion_done(motion_t *m, const float q[3])
-{
-    const float *dest = destination(m);
-    const bool there = same(q, dest);
-    m->blocked = !there && same(q, m->q);
-    if (m->blocked) m->blocked_steps++;
-    if (there) {
-        if (m->next_via < m->vias) m->next_via++;
-        else m->arrived = true;
-    }
-    memcpy(m->q, q, sizeof m->q);
 }

@@ -15,14 +15,21 @@ enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 #define AX_STATUS_RETURN_LEVEL 16u
 #define AX_TORQUE_ENABLE 24u
 #define AX_TORQUE_LIMIT 34u
+#define AX_PRESENT_POSITION 36u
 #define STATUS_RETURN_READS 1u    /* answer PING and READ only */
-#define TORQUE_LIMIT_FULL 1023u
+#define MAX_TORQUE 1023u                /* the EEPROM's Max Torque: a servo's Torque Limit at power-on */
+/* Torque Limit as configured: one below Max Torque, so that a servo that lost its RAM (its
+ * Torque Limit back at Max Torque) is told apart at its next status reading */
+#define TORQUE_LIMIT_SET (MAX_TORQUE - 1u)
 /* The longest a servo may wait before answering: Return Delay Time 254 x 2 us. A servo
  * not configured yet still has the factory 500 us. */
 #define RETURN_DELAY_MAX_US 508u
 #define REPLY_MARGIN_US 1000u
 
-enum { CFG_SRL, CFG_RETURN_DELAY, CFG_ANGLE_LIMITS, CFG_TORQUE_LIMIT, CFG_TORQUE_ENABLE, CFG_VERIFY, CFG_STEPS };
+enum { CFG_READ, CFG_WRITE, CFG_VERIFY };   /* configuration steps of each servo */
+/* its writes, in order (bits of sbus_t.cfg_mask); the EEPROM ones first */
+enum { CFG_W_SRL, CFG_W_RETURN_DELAY, CFG_W_ANGLE_LIMITS, CFG_W_SAFETY, CFG_W_SHUTDOWN, CFG_W_TORQUE_LIMIT,
+       CFG_W_TORQUE_ENABLE, CFG_WRITES };
 
 /* The SYNC_WRITE of goal position and moving speed (dxl_protocol.h): FF FF FE LEN 83 1E 04, then
  * per servo its ID, goal (2 bytes) and speed (2 bytes), then the checksum. */
@@ -177,15 +184,19 @@ static inline uint32_t word_at(const uint8_t *p)
     return w;
 }
 
-/* The sum, mod 256, of the status reply's 12 bytes from ID on, written out for the usual
- * reply (dxl_checksum()'s loop and call cost more than the sum): three whole words, whose
- * bytes sum to the low byte of each word plus its shifts by 8, 16 and 24. */
-typedef char status_is_twelve_bytes_from_id[DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN - 2 == 12 ? 1 : -1];
+/* The sum, mod 256, of the status reply's bytes from ID on, written out for the usual reply
+ * (dxl_checksum()'s loop and call cost more than the sum): whole words, whose bytes sum to
+ * the low byte of each word plus its shifts by 8, 16 and 24. */
+#define STATUS_WORDS ((DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN - 2) / 4)
+typedef char status_is_whole_words_from_id[(DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN - 2) % 4 == 0 ? 1 : -1];
 static inline uint8_t status_sum(const uint8_t *p)
 {
-    const uint32_t a = word_at(p), b = word_at(p + 4), c = word_at(p + 8);
-    return (uint8_t)(a + (a >> 8) + (a >> 16) + (a >> 24) + b + (b >> 8) + (b >> 16) + (b >> 24)
-                     + c + (c >> 8) + (c >> 16) + (c >> 24));
+    uint32_t sum = 0;
+    for (int k = 0; k < STATUS_WORDS; ++k) {
+        const uint32_t w = word_at(p + 4 * k);
+        sum += w + (w >> 8) + (w >> 16) + (w >> 24);
+    }
+    return (uint8_t)sum;
 }
 
 /* Do the n bytes held of the expected reply fit it? Its header, any parameters, and once all
@@ -295,80 +306,116 @@ static inline __attribute__((always_inline)) void flush_rx(sbus_t *bus)
 
 /* --------------------------------------------------------------- configuration */
 
-static size_t build_config_step(sbus_t *bus, uint8_t step, const sbus_servo_t *s, uint16_t cw, uint16_t ccw)
+/* The registers as the servo should hold them (AX-12A control table, from Return Delay Time
+ * on); the safety ones at the factory's values: Highest Limit Temperature 70 deg C, supply
+ * 6.0-14.0 V, Max Torque 1023, Alarm Shutdown on overheating and overload (the servo drops
+ * its own torque, which the tracking watch then sees). */
+#define AX_HIGHEST_TEMPERATURE 11u
+#define AX_ALARM_SHUTDOWN 18u
+#define SAFE_TEMPERATURE_C 70u
+#define SAFE_VOLTAGE_LOW 60u           /* 0.1 V */
+#define SAFE_VOLTAGE_HIGH 140u
+#define SAFE_SHUTDOWN 0x24u            /* overheating (bit 2), overload (bit 5) */
+
+/* Each write, its first register and its bytes for servo i. */
+static uint8_t write_of(unsigned w, unsigned i, uint8_t data[5])
 {
-    uint8_t data[4];
-    switch (step) {
-    case CFG_SRL:
+    switch (w) {
+    case CFG_W_SRL:
         data[0] = STATUS_RETURN_READS;
-        return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_STATUS_RETURN_LEVEL, data, 1);
-    case CFG_RETURN_DELAY:
+        return AX_STATUS_RETURN_LEVEL;
+    case CFG_W_RETURN_DELAY:
         data[0] = MODEL_SERVO_RETURN_DELAY;
-        return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_RETURN_DELAY, data, 1);
-    case CFG_ANGLE_LIMITS:
-        data[0] = (uint8_t)(cw & 0xFFu);
-        data[1] = (uint8_t)(cw >> 8);
-        data[2] = (uint8_t)(ccw & 0xFFu);
-        data[3] = (uint8_t)(ccw >> 8);
-        return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_CW_ANGLE_LIMIT, data, 4);
-    case CFG_TORQUE_LIMIT:
-        data[0] = (uint8_t)(TORQUE_LIMIT_FULL & 0xFFu);
-        data[1] = (uint8_t)(TORQUE_LIMIT_FULL >> 8);
-        return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_TORQUE_LIMIT, data, 2);
-    case CFG_TORQUE_ENABLE:
-        data[0] = 1;
-        return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_TORQUE_ENABLE, data, 1);
-    default:
-        return dxl_build_read(bus->tx, sizeof bus->tx, s->id, SBUS_VERIFY_ADDR, SBUS_VERIFY_LEN);
+        return AX_RETURN_DELAY;
+    case CFG_W_ANGLE_LIMITS:
+        data[0] = (uint8_t)(CW_LIMIT[i] & 0xFFu);
+        data[1] = (uint8_t)(CW_LIMIT[i] >> 8);
+        data[2] = (uint8_t)(CCW_LIMIT[i] & 0xFFu);
+        data[3] = (uint8_t)(CCW_LIMIT[i] >> 8);
+        return AX_CW_ANGLE_LIMIT;
+    case CFG_W_SAFETY:
+        data[0] = SAFE_TEMPERATURE_C;
+        data[1] = SAFE_VOLTAGE_LOW;
+        data[2] = SAFE_VOLTAGE_HIGH;
+        data[3] = (uint8_t)(MAX_TORQUE & 0xFFu);
+        data[4] = (uint8_t)(MAX_TORQUE >> 8);
+        return AX_HIGHEST_TEMPERATURE;
+    case CFG_W_SHUTDOWN:
+        data[0] = SAFE_SHUTDOWN;
+        return AX_ALARM_SHUTDOWN;
+    case CFG_W_TORQUE_LIMIT:
+        data[0] = (uint8_t)(TORQUE_LIMIT_SET & 0xFFu);
+        data[1] = (uint8_t)(TORQUE_LIMIT_SET >> 8);
+        return AX_TORQUE_LIMIT;
+    default:   /* CFG_W_TORQUE_ENABLE */
+        data[0] = 1u;
+        return AX_TORQUE_ENABLE;
     }
 }
 
-/* The read-back of addresses 5..43 shows every register written above. */
-static bool config_verified(const sbus_t *bus, uint16_t cw, uint16_t ccw)
+static const uint8_t WRITE_LEN[CFG_WRITES] = { 1u, 1u, 4u, 5u, 1u, 2u, 1u };
+
+/* The writes whose registers differ, in a read of addresses 5..43 (reply_params). */
+static uint8_t writes_needed(const sbus_t *bus, unsigned i)
 {
-#define REG8(addr) ((uint16_t)bus->reply_params[(addr) - SBUS_VERIFY_ADDR])
-#define REG16(addr) ((uint16_t)(REG8(addr) | REG8((addr) + 1u) << 8))
-    return REG8(AX_RETURN_DELAY) == MODEL_SERVO_RETURN_DELAY
-        && REG16(AX_CW_ANGLE_LIMIT) == cw && REG16(AX_CW_ANGLE_LIMIT + 2u) == ccw
-        && REG8(AX_STATUS_RETURN_LEVEL) == STATUS_RETURN_READS
-        && REG8(AX_TORQUE_ENABLE) == 1u
-        && REG16(AX_TORQUE_LIMIT) == TORQUE_LIMIT_FULL;
-#undef REG8
-#undef REG16
+    uint8_t mask = 0, data[5];
+    for (unsigned w = 0; w < CFG_WRITES; ++w) {
+        const uint8_t addr = write_of(w, i, data);
+        if (memcmp(bus->reply_params + (addr - SBUS_VERIFY_ADDR), data, WRITE_LEN[w]) != 0) mask |= (uint8_t)(1u << w);
+    }
+    return mask;
 }
 
-static void take_status(sbus_servo_t *s, const uint8_t *p);
+static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p);
 
+/* Per servo: read what it holds (5..43), write what differs (EEPROM wears: nothing is
+ * rewritten at every enable), read it all back. A servo that does not answer the first read
+ * (Status Return Level 0) gets every write. */
 static void configure(sbus_t *bus)
 {
-    const int i = bus->cfg_servo;
+    const unsigned i = bus->cfg_servo;
     sbus_servo_t *s = &bus->servo[i];
     if (bus->phase == PHASE_IDLE) {
         flush_rx(bus);
-        uint8_t step = bus->cfg_step;
-        size_t len = build_config_step(bus, step, s, CW_LIMIT[i], CCW_LIMIT[i]);
-        if (step == CFG_VERIFY) {
-            (void)request(bus, bus->tx, len, REPLY_REQUIRED, s, SBUS_VERIFY_LEN);
-        } else {
+        size_t len;
+        if (bus->cfg_step == CFG_WRITE) {
+            uint8_t data[5];
+            const unsigned w = (unsigned)__builtin_ctz(bus->cfg_mask);
+            const uint8_t addr = write_of(w, i, data);
+            len = dxl_build_write(bus->tx, sizeof bus->tx, s->id, addr, data, WRITE_LEN[w]);
             (void)request(bus, bus->tx, len, REPLY_OPTIONAL, s, 0);
+        } else {
+            len = dxl_build_read(bus->tx, sizeof bus->tx, s->id, SBUS_VERIFY_ADDR, SBUS_VERIFY_LEN);
+            (void)request(bus, bus->tx, len, REPLY_REQUIRED, s, SBUS_VERIFY_LEN);
         }
         return;
     }
     const int how = transaction(bus);
     if (how == NOT_DONE) return;
-    if (bus->cfg_step < CFG_VERIFY) {
-        bus->cfg_step++;
+    switch (bus->cfg_step) {
+    case CFG_READ:
+        bus->cfg_mask = how == DONE_OK ? writes_needed(bus, i) : (uint8_t)((1u << CFG_WRITES) - 1u);
+        bus->cfg_step = bus->cfg_mask ? CFG_WRITE : CFG_VERIFY;
+        return;
+    case CFG_WRITE: {
+        const unsigned w = (unsigned)__builtin_ctz(bus->cfg_mask);
+        if (w < CFG_W_TORQUE_LIMIT) s->eeprom_writes++;
+        bus->cfg_mask &= (uint8_t)(bus->cfg_mask - 1u);
+        if (!bus->cfg_mask) bus->cfg_step = CFG_VERIFY;
         return;
     }
-    if (how == DONE_OK && config_verified(bus, CW_LIMIT[i], CCW_LIMIT[i])) {
-        take_status(s, bus->reply_params + (SBUS_STATUS_ADDR - SBUS_VERIFY_ADDR));
-        bus->cfg_step = 0;
+    default:
+        break;
+    }
+    if (how == DONE_OK && writes_needed(bus, i) == 0) {
+        take_status(bus, s, bus->reply_params + (SBUS_STATUS_ADDR - SBUS_VERIFY_ADDR));
+        bus->cfg_step = CFG_READ;
         bus->cfg_attempt = 0;
         if (++bus->cfg_servo == SBUS_SERVOS) enter(bus, SBUS_RUNNING);
         return;
     }
     if (how == DONE_TIMEOUT) s->timeouts++;
-    bus->cfg_step = 0;
+    bus->cfg_step = CFG_READ;
     if (++bus->cfg_attempt >= SBUS_CONFIG_ATTEMPTS) {
         s->failed = true;
         enter(bus, SBUS_FAILED);
@@ -379,16 +426,42 @@ static void configure(sbus_t *bus)
 
 /* --------------------------------------------------------------- running */
 
-static void take_status(sbus_servo_t *s, const uint8_t *p)
+/* A status reading of registers 32..43. Torque Limit back at Max Torque while running: the
+ * servo lost its RAM (a brown-out), its torque is off and it goes limp; it is configured
+ * again at once (refit). (An overload or overheating Shutdown sets Torque Limit to 0: the
+ * tracking watch's business, not a reset.) */
+static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
 {
-    s->present_position = (uint16_t)(p[0] | p[1] << 8);
-    s->present_speed = (uint16_t)(p[2] | p[3] << 8);
-    s->present_load = (uint16_t)(p[4] | p[5] << 8);
-    s->present_voltage = p[6];
-    s->present_temperature = p[7];
+    const uint8_t *q = p + (AX_PRESENT_POSITION - SBUS_STATUS_ADDR);
+    s->present_position = (uint16_t)(q[0] | q[1] << 8);
+    s->present_speed = (uint16_t)(q[2] | q[3] << 8);
+    s->present_load = (uint16_t)(q[4] | q[5] << 8);
+    s->present_voltage = q[6];
+    s->present_temperature = q[7];
     s->status_valid = true;
     s->failed = false;
     s->reads++;
+    const uint8_t *limit = p + (AX_TORQUE_LIMIT - SBUS_STATUS_ADDR);
+    if ((limit[0] | limit[1] << 8) == MAX_TORQUE && bus->state == SBUS_RUNNING) {
+        s->resets++;
+        bus->resets++;
+        bus->refit |= (uint8_t)(1u << (s - bus->servo));
+    }
+}
+
+/* The servo's RAM as configured, in one WRITE of 24..35: torque on, holding where it stands
+ * (Goal Position = Present Position, at the park speed), compliance as after power-up, Torque
+ * Limit as configured. */
+static size_t build_refit(sbus_t *bus, const sbus_servo_t *s)
+{
+    const uint16_t at = s->present_position;
+    const uint8_t data[12] = {
+        1u, 0u, 1u, 1u, 32u, 32u,                              /* Torque Enable, LED, compliance */
+        (uint8_t)(at & 0xFFu), (uint8_t)(at >> 8),              /* Goal Position */
+        (uint8_t)(MODEL_PARK_SPEED & 0xFFu), (uint8_t)(MODEL_PARK_SPEED >> 8),
+        (uint8_t)(TORQUE_LIMIT_SET & 0xFFu), (uint8_t)(TORQUE_LIMIT_SET >> 8),
+    };
+    return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_TORQUE_ENABLE, data, sizeof data);
 }
 
 /* The queued goals and speeds into the SYNC_WRITE; its length, or 0 when a value is out of
@@ -418,9 +491,13 @@ static void run(sbus_t *bus)
     if (bus->phase != PHASE_IDLE) {
         const int how = transaction(bus);
         if (how == NOT_DONE || bus->reply == REPLY_NONE) return;
+        if (bus->refitting) {
+            bus->refitting = false;
+            return;
+        }
         sbus_servo_t *s = &bus->servo[bus->read_index];
         if (how == DONE_OK) {
-            take_status(s, bus->reply_params);
+            take_status(bus, s, bus->reply_params);
             bus->status_reads++;
             bus->last_read = bus->read_index;
         } else {
@@ -441,6 +518,14 @@ static void run(sbus_t *bus)
             bus->command_pending = false;
             bus->read_due = true;
             bus->sync_writes++;
+        }
+    } else if (bus->refit) {
+        flush_rx(bus);
+        const unsigned i = (unsigned)__builtin_ctz(bus->refit);
+        if (request(bus, bus->tx, build_refit(bus, &bus->servo[i]), REPLY_OPTIONAL, &bus->servo[i], 0)) {
+            bus->refit &= (uint8_t)~(1u << i);
+            bus->refitting = true;
+            bus->refits++;
         }
     } else if (bus->read_due) {
         flush_rx(bus);

@@ -48,8 +48,12 @@ static inline __attribute__((always_inline)) void look_at_servo(track_t *t, cons
     if (w->have_last) {
         if (tracks(w, s->present_position, bus->goal[i], bus->speed[i], dt_us)) {
             w->bad_us = 0;
-            w->fault = false;
+            if (w->fault) {
+                w->good_us = w->good_us + dt_us < w->good_us ? UINT32_MAX : w->good_us + dt_us;
+                w->fault = w->good_us < TRACK_FAULT_US;
+            }
         } else {
+            w->good_us = 0;
             w->bad_us = w->bad_us + dt_us < w->bad_us ? UINT32_MAX : w->bad_us + dt_us;
             w->fault = w->bad_us >= TRACK_FAULT_US;
         }

@@ -50,20 +50,37 @@ static __attribute__((noinline)) void start(stab_t *s, const float accel_g[3], c
     s->started = true;
 }
 
+/* The time since the previous sample (s): measured, as the IMU's own clock may run a few
+ * percent off the tick's (a sample then repeats, and the next one covers twice the time);
+ * at most STAB_DT_MAX_PERIODS periods (after a gap, the attitude holds what it had). */
+static inline float sample_dt(stab_t *s, uint32_t now_us)
+{
+    uint32_t us = now_us - s->last_sample_us;
+    s->last_sample_us = now_us;
+    if (us > MODEL_TICK_US + MODEL_TICK_US / 2u) {   /* a tick or more without a sample, or the first */
+        if (s->samples > 1u) s->gaps++;
+        if (s->samples <= 1u) us = MODEL_TICK_US;
+        else if (us > STAB_DT_MAX_PERIODS * MODEL_TICK_US) us = STAB_DT_MAX_PERIODS * MODEL_TICK_US;
+    }
+    return (float)us * 1e-6f;
+}
+
 void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], uint32_t now_us, bool engaged)
 {
     float acc[3];
     if (!s->started) start(s, accel_g, gyro_rad_s);
+    if (s->samples < UINT32_MAX) s->samples++;
+    const float dt = sample_dt(s, now_us);
     filt_accel_step3(s->accel_filter, accel_g, acc);
 #if MODEL_ESTIMATOR_QUATERNION
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
     if (stab_link_fresh(s, now_us)) {
-        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, s->up);   /* the drone's attitude corrects */
+        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, dt, s->up);   /* the drone's attitude corrects */
     } else if (engaged) {
         est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
-                      s->up);
+                      dt, s->up);
     } else {
-        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, s->up);
+        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, dt, s->up);
     }
     memcpy(s->rate, s->quat.rate, sizeof s->rate);
     if (MODEL_DRONE_ATTITUDE) remember(s, now_us);
@@ -71,9 +88,8 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     static const float no_bias[3] = { 0.0f, 0.0f, 0.0f };
     float gyro[3];
     (void)engaged;
-    (void)now_us;
     for (int i = 0; i < 3; ++i) gyro[i] = filt_gyro_step(&s->gyro_filter[i], gyro_rad_s[i]);
-    est_complementary_step(&s->attitude, acc, gyro);
+    est_complementary_step(&s->attitude, acc, gyro, dt);
     est_attitude_up(&s->attitude, s->up);
     est_rate(gyro, no_bias, s->rate);
 #endif

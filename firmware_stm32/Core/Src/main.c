@@ -120,6 +120,7 @@ int main(void)
 
     /* USER CODE BEGIN 3 */
     app_poll(&app);
+    app_watch(&app);
     board_port_poll();
   }
   /* USER CODE END 3 */

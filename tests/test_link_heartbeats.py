@@ -1,0 +1,102 @@
+"""The drone side trusts only fresh heartbeats: the newest of a batch, none queued longer than a
+period, sequence gaps and board restarts counted. Heartbeats are built from the message table
+and framed by LLCP, as the board sends them; the port is a stand-in that hands out what is
+queued."""
+import pytest
+
+from uavarm import llcp, messages
+from uavarm.link import ArmLink, CommandRefused, HeartbeatAge
+from uavarm.model import config
+
+PERIOD = config.load().heartbeat_period
+HOUR_MS = 3_600_000
+NOT_ENABLED, SERVO_FAULT = (1, 3)
+
+
+def heartbeat(seq, uptime_ms, **given):
+    fields = {name: 0 for name, _ in messages.BY_NAME["heartbeat"].fields}
+    fields.update(seq=seq, uptime_ms=uptime_ms, **given)
+    return llcp.encode(messages.encode("heartbeat", **fields))
+
+
+class QueuedPort:
+    """A serial port whose reads hand out the queued reads one at a time (b"": nothing yet)."""
+
+    def __init__(self, *reads):
+        self.reads = list(reads)
+        self.written = []
+
+    def read(self, n):
+        return self.reads.pop(0)[:n] if self.reads else b""
+
+    def write(self, data):
+        self.written.append(data)
+        return len(data)
+
+    def flush(self):
+        pass
+
+    def close(self):
+        pass
+
+
+def test_refusal_codes_used_here_are_the_tables():
+    names = [name for name, _ in messages.REFUSALS]
+    assert (names.index("not_enabled"), names.index("servo_fault")) == (NOT_ENABLED, SERVO_FAULT)
+
+
+def test_a_port_opened_after_an_hour_gives_the_newest_heartbeat_only():
+    queued = b"".join(heartbeat(i, i * 300_000, engaged=int(i < 12)) for i in range(13))
+    arm = ArmLink(QueuedPort(queued), silence=0.2)
+    hb = arm.status()
+    assert (hb["seq"], hb["uptime_ms"], hb["engaged"]) == (12, HOUR_MS, 0)
+    assert arm.age.stale == 12
+    assert [h["seq"] for h in arm.heartbeats] == [12]
+
+
+def test_an_engage_refused_now_is_not_confirmed_by_queued_engaged_heartbeats():
+    old = b"".join(heartbeat(i, i * 300_000, enabled=1, engaged=1) for i in range(12))
+    now = heartbeat(12, HOUR_MS, enabled=1, engaged=0, refusal=SERVO_FAULT, faults=1)
+    later = heartbeat(13, HOUR_MS + 500, enabled=1, engaged=0, refusal=SERVO_FAULT, faults=1)
+    arm = ArmLink(QueuedPort(old + now, b"", later), silence=0.2)
+    with pytest.raises(CommandRefused, match="engage refused: .*servo does not answer.*servo_timeout"):
+        arm.engage()
+
+
+def test_a_heartbeat_delivered_late_is_dropped_and_counted():
+    age = HeartbeatAge(period=0.5)
+    fresh = age.fresh([{"seq": 0, "uptime_ms": 10_000}], now=100.0)
+    assert [hb["age"] for hb in fresh] == [0.0]
+    # seq 1 sent at uptime 10.5 s but read 1.2 s later than the board's clock allows
+    assert age.fresh([{"seq": 1, "uptime_ms": 10_500}], now=101.7) == []
+    assert age.stale == 1
+    # a heartbeat on time (30 ms of USB latency) is kept, aged by the latency less the drift allowance
+    kept = age.fresh([{"seq": 2, "uptime_ms": 12_000}], now=102.03)
+    assert [hb["seq"] for hb in kept] == [2]
+    assert kept[0]["age"] == pytest.approx(0.03 - HeartbeatAge.DRIFT * 2.03, abs=1e-9)
+
+
+def test_clocks_apart_by_1000_ppm_do_not_age_fresh_heartbeats():
+    age = HeartbeatAge(period=0.5)
+    kept = 0
+    for i in range(7200):                       # an hour; the board's clock runs 0.1 % slow
+        uptime_s = i * 0.5
+        kept += len(age.fresh([{"seq": i, "uptime_ms": round(uptime_s * 1000)}], now=uptime_s * 1.001))
+    assert (kept, age.stale) == (7200, 0)
+
+
+def test_sequence_gaps_and_restarts_are_counted_and_a_restart_starts_the_ages_over():
+    age = HeartbeatAge(period=0.5)
+    age.fresh([{"seq": 0, "uptime_ms": 5_000}, {"seq": 1, "uptime_ms": 5_500}], now=50.5)
+    age.fresh([{"seq": 4, "uptime_ms": 7_000}], now=52.0)
+    assert (age.lost, age.restarts) == (2, 0)
+    # the board restarted 10 s later: its uptime is back near zero, every heartbeat is fresh
+    kept = age.fresh([{"seq": 0, "uptime_ms": 300}], now=62.3)
+    assert (age.lost, age.restarts, len(kept)) == (2, 1, 1)
+
+
+def test_sequence_and_uptime_wrap_are_not_restarts():
+    age = HeartbeatAge(period=0.5)
+    age.fresh([{"seq": 0xFFFF, "uptime_ms": 0xFFFF_FF00}], now=10.0)
+    kept = age.fresh([{"seq": 0, "uptime_ms": 0x0000_00F4}], now=10.5)
+    assert (age.lost, age.restarts, len(kept)) == (0, 0, 1)
