@@ -321,6 +321,14 @@ def params_context(m: config.Model):
         "accel_fs_sel": config.ACCEL_RANGES_G[m.accel_range_g],
         "gyro_fs_sel": config.GYRO_RANGES_DPS[m.gyro_range_dps],
         "accel_g_per_lsb": float32_literal(sp.Rational(1, lsb_per_g)),
+        # calibrated: (counts / lsb_per_g - bias) / scale = counts * k + c, per IMU axis
+        "accel_k": [float32_literal(1 / (lsb_per_g * sp.nsimplify(sc, rational=True)))
+                    for sc in m.imu_calibration.accel_scale],
+        "accel_c": [float32_literal(-sp.nsimplify(b, rational=True) / sp.nsimplify(sc, rational=True))
+                    for b, sc in zip(m.imu_calibration.accel_bias, m.imu_calibration.accel_scale)],
+        # the estimator's starting gyro bias, base axes, rad/s
+        "gyro_bias0": [float32_literal(v) for v in attitude.mounting(m) * sp.Matrix(
+            [sp.pi * sp.nsimplify(d, rational=True) / 180 for d in m.imu_calibration.gyro_bias_dps])],
         # full scale over 32768 LSB (the datasheet's 131, 65.5, 32.8, 16.4 LSB/(deg/s) rounded it)
         "gyro_rad_per_lsb": float32_literal(sp.pi * m.gyro_range_dps / 180 / 32768),
         "est": estimator_params(m),

@@ -90,12 +90,28 @@ class Model:
     gyro_range_dps: int
     dlpf_bandwidth: int
     imu_mounting_rpy_deg: tuple[float, float, float]
+    imu_calibration: "ImuCalibration"
     mount_offset: tuple[float, float, float]
     accel_filter: Filter
     gyro_filter: Filter
     complementary_gyro_weight: float
     estimator: "Estimator"
     motion: "Motion"
+
+
+# Plausible calibration results (MPU-6050 datasheet: zero-g offset +-80 mg on X and Y,
+# +-150 mg on Z; sensitivity within 3 %): beyond these the chip or the procedure is broken.
+ACCEL_BIAS_MAX_G = 0.25
+ACCEL_SCALE_RANGE = (0.9, 1.1)
+
+
+@dataclass(frozen=True)
+class ImuCalibration:
+    """[imu] calibration, IMU axes: each accelerometer axis reads scale x (true) + bias (g);
+    the gyro's zero-rate offset the estimator starts from (deg/s). Identity when absent."""
+    accel_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    accel_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    gyro_bias_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -148,6 +164,13 @@ class _Reader:
                 raise self.fail(key, "missing")
             node = node[part]
         return node
+
+    def has(self, key: str) -> bool:
+        try:
+            self.get(key)
+        except ModelError:
+            return False
+        return True
 
     def number(self, key: str, *, positive=False, nonnegative=False, lo=None, hi=None) -> float:
         value = self.get(key)
@@ -292,6 +315,7 @@ def parse(raw: bytes, path: Path) -> Model:
         gyro_range_dps=r.integer("imu.gyro_range_dps", choices=set(GYRO_RANGES_DPS)),
         dlpf_bandwidth=r.integer("imu.dlpf_bandwidth", choices=set(DLPF_BANDWIDTHS)),
         imu_mounting_rpy_deg=_three(r, "imu.mounting_rpy"),
+        imu_calibration=_imu_calibration(r),
         mount_offset=_offset(r, "mount.offset"),
         accel_filter=filters[0],
         gyro_filter=filters[1],
@@ -330,6 +354,23 @@ def _three(r: _Reader, key: str) -> tuple[float, float, float]:
     if len(values) != 3:
         raise r.fail(key, f"expected 3 angles in degrees, got {len(values)}")
     return values
+
+
+def _imu_calibration(r: _Reader) -> ImuCalibration:
+    def vector(key, default, lo, hi, what):
+        if not r.has(key):
+            return default
+        values = r.number_list(key, lo=lo, hi=hi)
+        if len(values) != 3:
+            raise r.fail(key, f"expected 3 {what} (x, y, z in the IMU's axes), got {len(values)}")
+        return values
+    gyro_max = r.number("estimator.gyro_bias_max_dps", nonnegative=True, hi=100.0)
+    return ImuCalibration(
+        accel_bias=vector("imu.accel_bias", (0.0, 0.0, 0.0), -ACCEL_BIAS_MAX_G, ACCEL_BIAS_MAX_G, "offsets in g"),
+        accel_scale=vector("imu.accel_scale", (1.0, 1.0, 1.0), *ACCEL_SCALE_RANGE, "scale factors"),
+        gyro_bias_dps=vector("imu.gyro_bias_dps", (0.0, 0.0, 0.0), -gyro_max, gyro_max,
+                             "rates in deg/s (within estimator.gyro_bias_max_dps)"),
+    )
 
 
 def _offset(r: _Reader, key: str) -> tuple[float, float, float]:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 TYPES = {
     "u8": ("uint8_t", "B", 1),
     "u16": ("uint16_t", "H", 2),
+    "i16": ("int16_t", "h", 2),
     "u32": ("uint32_t", "I", 4),
     "i32": ("int32_t", "i", 4),
     "f32": ("float", "f", 4),
@@ -50,6 +51,16 @@ MESSAGES = (
             "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
             "seq counts up by one per message, stamp_us is the drone's clock. Like every frame sent "
             "to the arm it keeps the link alive; it is not yet fused into the arm's estimate"),
+    Message("jog", 0x14, "to_arm", (("joint", "u8"), ("mode", "u8"), ("value", "f32")),
+            "service (enabled, not engaged): move joint 1-3 at park speed, mode 0 to the angle value "
+            "(rad), mode 1 by value servo units from its goal; checked like every move (limits, body, "
+            "legs, the swept path). Turns the torque back on if it was off"),
+    Message("torque", 0x15, "to_arm", (("on", "u8"),),
+            "service (enabled, not engaged): 0 torque off (limp for positioning by hand; the supply "
+            "stays on and positions are still read), 1 torque on, holding where the arm stands"),
+    Message("stream", 0x16, "to_arm", (("imu_every", "u8"), ("servos", "u8")),
+            "service (not engaged; engage stops it): imu_raw every imu_every ticks (0 off), "
+            "servo_status after every status read (servos 1) or not (0)"),
     Message("heartbeat", 0x20, "to_drone", (
         ("seq", "u16"), ("uptime_ms", "u32"),
         ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"), ("state", "u8"), ("refusal", "u8"),
@@ -66,6 +77,18 @@ MESSAGES = (
     ), "every 500 ms: sequence number and uptime, state, set position, joint angles (rad), fault flags, "
        "counters, the bus and reset state (with the exception that halted the firmware before it), firmware and model identity, each servo's supply (0.1 V), "
        "temperature (deg C) and load (AX-12A units, bit 10 = direction)"),
+    Message("imu_raw", 0x21, "to_drone", (
+        ("seq", "u16"), ("stamp_us", "u32"),
+        ("ax", "i16"), ("ay", "i16"), ("az", "i16"), ("temperature", "i16"),
+        ("gx", "i16"), ("gy", "i16"), ("gz", "i16"), ("fresh", "u8"),
+    ), "when streamed: the MPU-6050's registers as read (counts, the IMU's own axes, "
+       "ACCEL_XOUT_H..GYRO_ZOUT_L), the board's microsecond time of the read, and whether the "
+       "chip had latched a new sample"),
+    Message("servo_status", 0x22, "to_drone", (
+        ("seq", "u16"), ("stamp_us", "u32"), ("servo", "u8"),
+        ("goal", "u16"), ("position", "u16"), ("speed", "u16"), ("load", "u16"),
+    ), "when streamed: one servo's status read (servo 0-2; AX-12A units: the goal last sent, "
+       "present position, speed and load), with the board's microsecond time of the reply"),
 )
 
 # heartbeat.refusal: why the last refused command was refused
@@ -78,6 +101,9 @@ REFUSALS = (
     ("servo_tracking", "engage while a servo does not follow its goal"),
     ("no_route", "engage or set_position with no clear route there"),
     ("not_finite", "set_position with a NaN or infinite coordinate"),
+    ("engaged", "a service command (jog, torque, stream) while engaged: disengage first"),
+    ("bad_jog", "jog of a joint other than 1-3, by a non-finite value, or to a pose outside the limits, "
+                "in the body or a leg, or with no clear path"),
 )
 
 # heartbeat.reset_cause: why the chip last reset (RCC_CSR's flags, read once at start-up)
@@ -101,6 +127,9 @@ STATES = (
     ("parked", "holding the park pose"),
     ("moving", "engaged: on its way to the set position at transit speed"),
     ("holding", "engaged: at the set position, following the tilt at working speed"),
+    ("limp", "service: torque off for positioning by hand; positions are still read"),
+    ("jogging", "service: on its way to a jogged pose at park speed"),
+    ("jogged", "service: holding a jogged pose"),
 )
 
 # Bits of heartbeat.faults, lowest first. Latched ones stay set until the next enable.
@@ -128,7 +157,7 @@ FAULTS = (
 
 def wire_types(messages=MESSAGES) -> set[str]:
     """The field types in use, with those their C byte helpers are built from."""
-    needs = {"u8": set(), "u16": {"u8"}, "u32": {"u16"}, "i32": {"u32"}, "f32": {"u32"}}
+    needs = {"u8": set(), "u16": {"u8"}, "i16": {"u16"}, "u32": {"u16"}, "i32": {"u32"}, "f32": {"u32"}}
     todo = {"u8"} | {t for m in messages for _, t in m.fields}
     used = set()
     while todo:

@@ -20,6 +20,7 @@ from uavarm import messages
 from uavarm.board import SimBoard
 
 HB = MODEL.heartbeat_period
+TORQUE_ENABLE = 24                # AX-12A control table: Torque Enable
 
 
 class Invariants:
@@ -36,7 +37,8 @@ class Invariants:
       only known fault bits;
     - heartbeats keep coming: none further apart than the period (plus one main-loop pass);
     - ticks keep running: a SYNC_WRITE at least every `max_sync_gap` while the arm is
-      enabled and its servos configured.
+      enabled and its servos configured (and not limp on purpose: from the broadcast WRITE
+      of Torque Enable 0 to the next SYNC_WRITE).
     disable() sends "enable 0" and checks the supply is off within one tick."""
 
     def __init__(self, board: SimBoard, log: BusLog | None = None):
@@ -48,6 +50,7 @@ class Invariants:
         self.max_sync_gap = TICK + self.poll + 1e-9
         self._sync_from: float | None = None
         self._last_goal: tuple[float, list[int]] | None = None    # (time, units) while powered
+        self.limp = False                 # torque off on purpose: no SYNC_WRITE is due
         self.segments = 0
 
     def power_at(self, t: float) -> tuple[bool, float]:
@@ -65,10 +68,13 @@ class Invariants:
             assert log.tx_power[k], f"{p.raw.hex(' ')} sent with the servo power off"
             assert p.start - self.power_at(p.start)[1] >= MODEL.servo_boot_time - 1e-9, "sent during boot"
             if p.inst == 0x83:
+                self.limp = False
                 goal, speed = sync_goal_speed(p.raw)
                 assert pose_ok(goal), ("unsafe command", goal, units_to_joints(goal))
                 assert speed in ([PARK_SPEED] * 3, [TRANSIT_SPEED] * 3, [WORKING_SPEED] * 3), speed
                 self._check_move(p.start, goal, speed[0])
+            elif p.inst == 0x03 and p.id == 0xFE and p.params[:2] == bytes([TORQUE_ENABLE, 0]):
+                self.limp = True          # torque off on purpose, until the next SYNC_WRITE
         self.n_tx = len(log.tx)
         on_bus = {s.id for s in board.bus.servos}
         if board.servo_power and self._last_goal is not None and on_bus.issuperset(IDS):
@@ -135,7 +141,7 @@ class Invariants:
     def _check_ticks(self) -> None:
         """While the servos run, a SYNC_WRITE at least every tick: the tick is never starved."""
         board = self.board
-        if not (board.app.bus.state == 3 and board.servo_power):
+        if not (board.app.bus.state == 3 and board.servo_power) or self.limp:
             self._sync_from = None
             return
         if self._sync_from is None:

@@ -10,9 +10,10 @@ from hypothesis import given, settings, strategies as st
 from uavarm import messages
 from uavarm.model.messages import MESSAGES, TX_MAX_PAYLOAD
 
-CTYPES = {"u8": ctypes.c_uint8, "u16": ctypes.c_uint16, "u32": ctypes.c_uint32,
+CTYPES = {"u8": ctypes.c_uint8, "u16": ctypes.c_uint16, "i16": ctypes.c_int16, "u32": ctypes.c_uint32,
           "i32": ctypes.c_int32, "f32": ctypes.c_float}
-RANGES = {"u8": st.integers(0, 255), "u16": st.integers(0, 65535), "u32": st.integers(0, 2**32 - 1),
+RANGES = {"u8": st.integers(0, 255), "u16": st.integers(0, 65535), "i16": st.integers(-2**15, 2**15 - 1),
+          "u32": st.integers(0, 2**32 - 1),
           "i32": st.integers(-2**31, 2**31 - 1),
           "f32": st.floats(width=32, allow_nan=False)}
 
@@ -57,6 +58,14 @@ def test_set_position_bytes_by_hand():
     """x = 1.0 is 0x3F800000, little-endian; y = -2.0 is 0xC0000000."""
     payload = messages.encode("set_position", x=1.0, y=-2.0, z=0.0)
     assert payload == bytes([0x12, 0, 0, 0x80, 0x3F, 0, 0, 0, 0xC0, 0, 0, 0, 0])
+
+
+def test_imu_raw_bytes_by_hand():
+    """Signed 16-bit counts little-endian on the wire: -2 is FE FF, 16384 is 00 40."""
+    payload = messages.encode("imu_raw", seq=1, stamp_us=0x01020304, ax=-2, ay=16384, az=0, temperature=-1,
+                              gx=1, gy=-32768, gz=32767, fresh=1)
+    assert payload == bytes([0x21, 1, 0, 4, 3, 2, 1, 0xFE, 0xFF, 0, 0x40, 0, 0, 0xFF, 0xFF, 1, 0,
+                             0, 0x80, 0xFF, 0x7F, 1])
 
 
 def test_expected_lengths_and_unknown_ids(gen):

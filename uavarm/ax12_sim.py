@@ -293,6 +293,11 @@ class AX12:
     def power_off(self) -> None:
         self.powered = False
 
+    def turn_by_hand(self, position: float) -> None:
+        """Someone turns the shaft to `position` (units), as on the bench with the torque off."""
+        self._pos = self._profile = float(position)
+        self._update_present(0.0, 0.0)
+
     def factory_reset(self) -> None:
         """The whole table back to factory values: ID 1, 1 Mbps."""
         self._reset_eeprom()

@@ -9,11 +9,12 @@ the tick interrupt and the clock. Everything the board says comes back as link b
     board.send("enable", on=1)
     board.run(1.0)                      # seconds of simulated time
     board.heartbeats[-1]                # decoded heartbeat fields
+    board.streamed["imu_raw"]           # decoded service stream frames (stream command)
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -104,8 +105,9 @@ class SimBoard:
     the last heartbeats (long runs such as the SITL); sensor: the MPU-6050's sensor model
     (uavarm.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
     gives the base frame's attitude(t) and imu(t) in base axes; the board turns the latter
-    into the IMU's axes with the model's mounting rotation and the sensor model samples it
-    at the chip's internal rate.
+    into the IMU's axes with the model's mounting rotation (or imu_mounting_rpy_deg, the
+    hardware as it is, for calibration) and the sensor model samples it at the chip's
+    internal rate.
 
     Faults of the board itself, for the tests: imu_clock_error, how far the IMU's own clock
     runs from the tick's (0.02: 2 % fast; 0: a sample just before every tick); and the
@@ -115,7 +117,8 @@ class SimBoard:
 
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
                  poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True,
-                 sensor: Mpu6050Sensor | None = None, imu_clock_error: float = 0.0):
+                 sensor: Mpu6050Sensor | None = None, imu_clock_error: float = 0.0,
+                 imu_mounting_rpy_deg: tuple[float, float, float] | None = None):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -128,7 +131,9 @@ class SimBoard:
         self.bus.power(False)
         self.motion = motion or Gravity()
         self.sensor = sensor or Mpu6050Sensor("white", seed=0)
-        self._base_to_imu = np.array(attitude.mounting(m).T.tolist(), dtype=float)
+        # the IMU as it really sits (the model file's mounting unless told otherwise: calibration)
+        truth = m if imu_mounting_rpy_deg is None else replace(m, imu_mounting_rpy_deg=tuple(imu_mounting_rpy_deg))
+        self._base_to_imu = np.array(attitude.mounting(truth).T.tolist(), dtype=float)
         self.start_us = start_us
         self.poll_us = poll_us
         self.tick_us = round(US / m.sample_rate)
@@ -144,6 +149,7 @@ class SimBoard:
         self._link = llcp.Decoder(expected_len=lambda i: messages.BY_ID[i].size if i in messages.BY_ID else -1)
         self.heartbeats: list[dict] = []
         self.heartbeat_times: list[float] = []
+        self.streamed: dict[str, list[dict]] = {"imu_raw": [], "servo_status": []}   # service streams
         self.servo_tx = bytearray()           # every byte the board put on the servo bus
         self.servo_rx_bytes = 0               # bytes the servos sent back
         self.commands: list[SyncCommand] = []
@@ -236,8 +242,12 @@ class SimBoard:
                 if name == "heartbeat":
                     self.heartbeats.append(fields)
                     self.heartbeat_times.append(self.time)
+                elif name in self.streamed:
+                    self.streamed[name].append(fields)
             if not self.record:
                 del self.heartbeats[:-10], self.heartbeat_times[:-10]
+                for frames in self.streamed.values():
+                    del frames[:-1000]
 
     def take_link_output(self) -> bytes:
         """The bytes the board has sent to the drone since the last call."""

@@ -55,9 +55,11 @@ def link(args) -> int:
                 "enable": arm.enable, "disable": arm.disable, "engage": arm.engage,
                 "disengage": arm.disengage, "status": arm.next_heartbeat,
                 "goto": lambda: arm.set_position(*args.xyz),
+                "limp": lambda: arm.torque(False), "stiff": lambda: arm.torque(True),
+                "jog": lambda: arm.jog(int(args.xyz[0]), angle=math.radians(args.xyz[1])),
             }[args.action]
             print(_heartbeat_line(action()))
-    except LinkError as exc:
+    except LinkError as exc:   # (CommandRefused too: the board's reason)
         print(f"error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
@@ -77,16 +79,32 @@ def main(argv=None) -> int:
     d.add_argument("--seconds", type=float, default=4.0)
     lk = sub.add_parser("link", help="command a board (or a SITL) over its serial port")
     lk.add_argument("port", help="serial device, e.g. /dev/ttyACM0 or the path `uavarm sitl` prints")
-    lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor"])
-    lk.add_argument("xyz", type=float, nargs="*", metavar="X Y Z", help="goto: target in mm")
+    lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor",
+                                       "limp", "stiff", "jog"],
+                    help="limp: torque off (positions still read), stiff: torque back on, jog J DEG: joint J "
+                         "(1-3) to DEG at park speed; service commands, refused while engaged")
+    lk.add_argument("xyz", type=float, nargs="*", metavar="X Y Z", help="goto: target in mm; jog: JOINT DEG")
     lk.add_argument("--baud", type=int, default=115200, help="ignored by USB CDC; for UART adapters")
     lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
+    cal = sub.add_parser("calibrate", help="guided calibration over the link, written into the model file")
+    cal.add_argument("what", choices=["imu", "mounting"],
+                     help="imu: accelerometer bias and scale (six still positions) and the gyro's offset; "
+                          "mounting: the IMU's roll and pitch on the base (drone standing level)")
+    cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")
+    cal.add_argument("--model", default=None, help="model file to update (default model/manipulator.toml)")
+    cal.add_argument("--seconds", type=float, default=2.0, help="seconds of samples per position")
+    cal.add_argument("--yes", action="store_true", help="write the result without asking")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
     st.add_argument("scenario", nargs="?", default="level",
                     help="level (default), tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (bench tilting)")
     st.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second")
+    st.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default="white",
+                    help="the simulated IMU's errors (datasheet: biases and scale errors to calibrate)")
+    st.add_argument("--seed", type=int, default=0, help="draw of the IMU's errors")
+    st.add_argument("--imu-mounting", default=None, metavar="ROLL,PITCH,YAW",
+                    help="how the simulated IMU really sits on the base (deg), whatever the model file says")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
     sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/scenarios.py)")
     sm.add_argument("--show", action="store_true",
@@ -120,8 +138,11 @@ def main(argv=None) -> int:
     if rest:
         ap.error(f"unrecognized arguments: {' '.join(rest)}")
     if args.command == "link":
-        if (args.action == "goto") != (len(args.xyz) == 3) or (args.action != "goto" and args.xyz):
-            ap.error("goto takes exactly X Y Z; the other actions take none")
+        wanted = {"goto": 3, "jog": 2}.get(args.action, 0)
+        if len(args.xyz) != wanted:
+            ap.error("goto takes exactly X Y Z, jog takes JOINT DEG; the other actions take none")
+        if args.action == "jog" and args.xyz[0] not in (1, 2, 3):
+            ap.error(f"jog: joint must be 1, 2 or 3, got {args.xyz[0]:g}")
         return link(args)
     if args.command == "sim":
         from .sim_report import sim_command
@@ -141,13 +162,19 @@ def main(argv=None) -> int:
         counts = plot(model, Path(args.out))
         print(f"wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + " sampled poses")
         return 0
+    if args.command == "calibrate":
+        from .calibrate import command
+        if not args.seconds > 0:
+            ap.error("--seconds must be positive")
+        return command(args)
     if args.command == "sitl":
         from . import sitl
         try:
             sitl.motion_of(args.scenario)
+            mounting = sitl.angles_of(args.imu_mounting) if args.imu_mounting else None
         except ValueError as exc:
             ap.error(str(exc))
-        return sitl.main(args.scenario, args.speed)
+        return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=mounting)
     return demo(args)
 
 

@@ -136,6 +136,7 @@ class ArmLink:
         self.age = HeartbeatAge(period)
         self.decoder = llcp.Decoder(gap=0.1, expected_len=_expected_len)
         self.heartbeats: deque[dict] = deque(maxlen=100)
+        self.streamed: dict[str, deque] = {"imu_raw": deque(maxlen=10_000), "servo_status": deque(maxlen=10_000)}
         self.bytes_received = 0
         self._attitude_seq = 0
 
@@ -165,6 +166,8 @@ class ArmLink:
             name, fields = messages.decode(payload)
             if name == "heartbeat":
                 batch.append(fields)
+            elif name in self.streamed:
+                self.streamed[name].append(fields)
         new = self.age.fresh(batch, now)
         self.heartbeats.extend(new)
         return new
@@ -250,6 +253,44 @@ class ArmLink:
                         f"leg); the arm keeps ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f})")
             return f"set_position {target} not taken; faults {fault_names(hb['faults'])}"
         return self._confirm(taken, why)
+
+    # ---------------------------------------------------------------- service (bring-up, calibration)
+
+    def _service(self, name: str, **fields) -> dict:
+        """Send a service command; the heartbeat that took it, or CommandRefused with the reason."""
+        self.send(name, **fields)
+        hb = self.next_heartbeat()     # (at most a period old: the command arrived before it)
+        hb = self.next_heartbeat()
+        if hb["refusal"]:
+            raise CommandRefused(f"{name} refused: {refusal_reason(hb['refusal'])}")
+        return hb
+
+    def stream(self, imu_every: int = 0, servos: bool = False) -> dict:
+        """Ask for imu_raw every imu_every ticks (0 off) and servo_status after each status read."""
+        for frames in self.streamed.values():
+            frames.clear()
+        return self._service("stream", imu_every=int(imu_every), servos=int(bool(servos)))
+
+    def torque(self, on: bool) -> dict:
+        """Torque off (limp: move the arm by hand, positions still read) or back on."""
+        return self._service("torque", on=int(bool(on)))
+
+    def jog(self, joint: int, *, angle: float | None = None, units: int | None = None) -> dict:
+        """Joint 1-3 to an angle (rad) or by servo units, at park speed, checked like every move."""
+        if (angle is None) == (units is None):
+            raise ValueError("jog takes exactly one of angle (rad) and units")
+        mode, value = (0, float(angle)) if angle is not None else (1, float(units))
+        return self._service("jog", joint=int(joint), mode=mode, value=value)
+
+    def collect(self, name: str, seconds: float) -> list[dict]:
+        """The streamed frames of `name` that arrive during the next `seconds`."""
+        self.poll()
+        self.streamed[name].clear()
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.poll()
+            time.sleep(0.005)
+        return list(self.streamed[name])
 
     def send_attitude(self, roll: float, pitch: float, stamp_us: int | None = None) -> None:
         """Forward the drone's attitude (rad) from its flight controller; call at >= 50 Hz."""

@@ -17,6 +17,7 @@ import time
 import tty
 
 from .board import Gravity, Rocking, SimBoard
+from .imu_model import Mpu6050Sensor
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
 SLICE_S = 0.002
@@ -47,11 +48,12 @@ class Sitl:
     """The board and its pseudo-terminal. `device` is the path to open; `run()` serves it until
     `stop()` (from another thread) or Ctrl-C."""
 
-    def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None):
+    def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None, **board_options):
+        """board_options: SimBoard's (sensor, imu_mounting_rpy_deg: the hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
         self.speed = speed
-        self.board = SimBoard(model, motion=motion_of(scenario), record=False)
+        self.board = SimBoard(model, motion=motion_of(scenario), record=False, **board_options)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)          # bytes pass unchanged: no echo, no line editing
         os.set_blocking(self._master, False)
@@ -102,10 +104,22 @@ class Sitl:
             self.close()
 
 
-def main(scenario: str | None, speed: float) -> int:
-    sitl = Sitl(scenario, speed=speed)
-    print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x); Ctrl-C stops",
-          flush=True)
+def angles_of(text: str) -> tuple[float, float, float]:
+    """ROLL,PITCH,YAW in degrees."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+        if len(values) != 3 or not all(map(math.isfinite, values)):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"{text!r}: use ROLL,PITCH,YAW in degrees") from None
+    return values
+
+
+def main(scenario: str | None, speed: float, imu: str = "white", seed: int = 0,
+         imu_mounting: tuple[float, float, float] | None = None) -> int:
+    sitl = Sitl(scenario, speed=speed, sensor=Mpu6050Sensor(imu, seed=seed), imu_mounting_rpy_deg=imu_mounting)
+    print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x, IMU {imu} "
+          f"seed {seed}); Ctrl-C stops", flush=True)
     try:
         sitl.run()
     except KeyboardInterrupt:

@@ -22,6 +22,15 @@
  * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
  * as they stand.
  *
+ * Service (for bring-up and calibration; refused while engaged, taken while enabled):
+ *   torque 0/1       limp (torque off, supply on, positions still read) and back on,
+ *                    holding where the arm stands; engage, engage 0 (park) and jog also
+ *                    turn it back on
+ *   jog              one joint to an angle or by servo units at park speed, checked like
+ *                    every move; engage parks first
+ *   stream           imu_raw every N ticks and servo_status after each status read, sent
+ *                    from app_poll (not the tick); engage stops both
+ *
  * Main loop: app_poll() as often as possible. Tick: app_request_tick() from the IMU's
  * data-ready or a timer interrupt at the model's sample rate; the next app_poll() runs it.
  */
@@ -31,6 +40,7 @@
 #include <stdbool.h>
 #include <stdint.h>
 
+#include "imu_mpu6050.h"
 #include "llcp.h"
 #include "motion.h"
 #include "port.h"
@@ -48,6 +58,11 @@ extern "C" {
 #define APP_CLOCK_STALL_TICKS 3        /* ticks in a row with the microsecond clock standing still */
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
 #define APP_LINK_BYTES_PER_POLL 256    /* a flood of link bytes cannot starve the tick */
+
+/* where motion goes when it starts from the servos' readings (enable, torque back on) */
+#define APP_START_PARK 0
+#define APP_START_HOLD 1               /* stay where the arm stands (torque back on) */
+#define APP_START_JOG 2                /* go to jog_goal (a jog that turned the torque back on) */
 
 typedef struct {
     const port_t *port;
@@ -72,6 +87,19 @@ typedef struct {
     float set_position[3];         /* level frame, mm */
     bool set_on_axis;              /* ... on joint 1's axis: joint 1 holds while following */
     float q_cmd[3];                /* the joints last commanded (every move to them checked) */
+    /* service */
+    bool jog;                      /* the motion's aim is a jogged pose, not the park pose */
+    uint8_t start_to;              /* APP_START_*: where motion goes when it starts */
+    float jog_goal[3];             /* with APP_START_JOG */
+    uint8_t stream_imu_every;      /* imu_raw every N ticks, 0 off */
+    uint8_t stream_imu_ticks;
+    bool stream_servos;            /* servo_status after each status read */
+    bool imu_raw_ready;            /* imu_burst holds a read to stream */
+    uint8_t imu_burst[MPU_BURST_BYTES];
+    uint32_t imu_burst_us;
+    uint16_t imu_raw_seq;
+    uint32_t servo_reads_streamed; /* bus.status_reads already streamed */
+    uint16_t servo_status_seq;
     /* IMU */
     bool imu_ok;
     uint32_t imu_retry_us;

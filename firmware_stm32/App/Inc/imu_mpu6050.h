@@ -29,11 +29,12 @@ extern "C" {
 
 /* One burst, decoded and scaled (mpu_sample). */
 typedef struct {
-    float accel_g[3];               /* counts x the model's range / 32768, still in the IMU's axes */
+    float accel_g[3];               /* counts x the range / 32768, calibrated (the model file), IMU axes */
     float gyro_rad_s[3];
     bool fresh;                     /* DATA_RDY was set: the chip latched a sample since the last read */
     bool saturated;                 /* an accelerometer or gyro axis at -32768 or 32767 counts: the
                                        true value may be beyond it */
+    uint8_t burst[MPU_BURST_BYTES]; /* the registers as read, INT_STATUS .. GYRO_ZOUT_L */
 } mpu_sample_t;
 
 /* Checks WHO_AM_I, wakes the chip on the gyro-X PLL clock, and writes sample rate divider,

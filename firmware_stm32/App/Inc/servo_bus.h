@@ -24,6 +24,9 @@
  * supply dip resets it, torque off): one WRITE sets it up again, holding where it stands,
  * before the next READ, and it is counted (resets).
  *
+ * Service: sbus_limp() turns the torque off (a broadcast WRITE) and back on (each servo set
+ * up again, holding where it stands); sbus_read() reads a limp arm.
+ *
  * Received bytes are matched to the request by servo id and parameter count, so the
  * master's own echo (a single-wire UART hears itself) and stray packets are ignored. The
  * usual case, the expected status packet alone on the wire, is read straight into a buffer
@@ -130,6 +133,9 @@ typedef struct {
     uint32_t stray_packets;
     uint32_t status_reads;              /* readings taken, of all servos (wraps) */
     uint8_t last_read;                  /* the servo of the latest reading */
+    /* service */
+    bool limp;                          /* torque off on purpose (sbus_limp): no SYNC_WRITE */
+    bool limp_pending;                  /* its broadcast WRITE of Torque Enable 0 is still to go */
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */
@@ -139,6 +145,12 @@ void sbus_power(sbus_t *bus, bool on);
 /* Queue the next SYNC_WRITE (goal position and moving speed per servo, in units); ignored
  * unless RUNNING. A command not yet sent is replaced. */
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS]);
+/* Service, while RUNNING: on, one broadcast WRITE of Torque Enable 0 (the arm goes limp; the
+ * supply stays on) and no SYNC_WRITE until off, which sets each servo up again as after a
+ * brown-out, holding where it stands. */
+void sbus_limp(sbus_t *bus, bool on);
+/* Queue one status READ (round robin) without a command: how a limp arm is read. */
+void sbus_read(sbus_t *bus);
 /* Advance the state machine; call often (every main-loop pass). */
 void sbus_poll(sbus_t *bus);
 /* Worst-case bus time of one command: the SYNC_WRITE plus one status read that times out. */

@@ -65,6 +65,8 @@ static void set_enabled(app_t *app, bool on)
     app->motion.started = false;   /* where the arm is comes from the servos' first readings */
     app->motion_refused = false;
     app->parked = false;
+    app->jog = false;
+    app->start_to = APP_START_PARK;
     if (on) {
         app->servo_config_failed = false;
         app->servo_reset = false;
@@ -126,6 +128,109 @@ static void on_set_position(app_t *app, const msg_set_position_t *m)
     app->set_on_axis = motion_on_axis(p);
 }
 
+/* ------------------------------------------------------------------ service */
+
+/* Why a service command (jog, torque) is refused now, or MSG_REFUSAL_NONE. */
+static uint8_t service_refusal(const app_t *app)
+{
+    if (app->engaged) return MSG_REFUSAL_ENGAGED;
+    if (!app->enabled) return MSG_REFUSAL_NOT_ENABLED;
+    if (app->bus.state != SBUS_RUNNING) return MSG_REFUSAL_SERVOS_STARTING;
+    return MSG_REFUSAL_NONE;
+}
+
+/* Torque back on (the servos set up again, holding where they stand); motion then starts
+ * from their readings towards start_to. */
+static void torque_on(app_t *app, uint8_t start_to)
+{
+    sbus_limp(&app->bus, false);
+    app->start_to = start_to;
+    track_reset(&app->track);
+}
+
+static void on_torque(app_t *app, bool on)
+{
+    const uint8_t why = service_refusal(app);
+    if (why != MSG_REFUSAL_NONE) {
+        refuse(app, why);
+        return;
+    }
+    taken(app);
+    if (on == app->bus.limp) {
+        if (on) torque_on(app, APP_START_HOLD);
+        else {
+            sbus_limp(&app->bus, true);
+            app->motion.started = false;   /* moved by hand: starts again from the readings */
+            app->parked = app->jog = false;
+            track_reset(&app->track);
+        }
+    }
+}
+
+/* The pose a jog asks for, from the arm's goal (or, limp, where it stands); false if the
+ * joint or value is bad or the pose is not one the arm may rest at. */
+static bool jog_pose(const app_t *app, const msg_jog_t *m, float q[3])
+{
+    uint16_t units[SBUS_SERVOS];
+    const unsigned j = (unsigned)m->joint - 1u;
+    if (j >= 3u || !isfinite(m->value) || m->mode > 1u) return false;
+    if (app->bus.limp) {
+        for (int i = 0; i < SBUS_SERVOS; ++i) units[i] = app->bus.servo[i].present_position;
+        servo_units_to_joints(units, q);
+    } else {
+        memcpy(q, app->q_cmd, 3 * sizeof q[0]);
+    }
+    if (m->mode == 0u) {
+        q[j] = m->value;
+    } else {
+        if (!(fabsf(m->value) <= 1023.0f) || !servo_joints_to_units(q, units)) return false;
+        const float goal = (float)units[j] + roundf(m->value);
+        if (goal < 0.0f || goal > 1023.0f) return false;
+        units[j] = (uint16_t)goal;
+        servo_units_to_joints(units, q);
+    }
+    return kin_check_move(q, q, MOTION_GOAL_MARGIN) == KIN_OK;
+}
+
+static void on_jog(app_t *app, const msg_jog_t *m)
+{
+    float q[3];
+    uint8_t why = service_refusal(app);
+    if (why == MSG_REFUSAL_NONE && !app->bus.limp && !app->motion.started) why = MSG_REFUSAL_SERVOS_STARTING;
+    if (why == MSG_REFUSAL_NONE && !jog_pose(app, m, q)) why = MSG_REFUSAL_BAD_JOG;
+    if (why != MSG_REFUSAL_NONE) {
+        refuse(app, why);
+        return;
+    }
+    if (app->bus.limp) {   /* torque on first; the jog starts from where the arm then stands */
+        taken(app);
+        memcpy(app->jog_goal, q, sizeof q);
+        torque_on(app, APP_START_JOG);
+        return;
+    }
+    if (!motion_go(&app->motion, q)) {
+        refuse(app, MSG_REFUSAL_BAD_JOG);   /* no clear path there */
+        return;
+    }
+    taken(app);
+    app->motion_refused = false;
+    app->jog = true;
+    app->parked = false;
+}
+
+static void on_stream(app_t *app, const msg_stream_t *m)
+{
+    if (app->engaged) {
+        refuse(app, MSG_REFUSAL_ENGAGED);
+        return;
+    }
+    taken(app);
+    app->stream_imu_every = m->imu_every;
+    app->stream_imu_ticks = 0;
+    app->stream_servos = m->servos != 0u;
+    app->servo_reads_streamed = app->bus.status_reads;   /* from the next reading on */
+}
+
 /* Why engage would be refused now, or MSG_REFUSAL_NONE: it needs the servos configured,
  * answering and error-free, the estimator settled on the IMU's samples and servos that
  * follow their goals. */
@@ -149,8 +254,14 @@ static uint8_t not_ready(const app_t *app)
 static void on_engage(app_t *app, bool on)
 {
     taken(app);
+    if (app->bus.limp && app->enabled) {
+        torque_on(app, APP_START_PARK);   /* the torque back on first: engage once parked */
+        if (on) refuse(app, MSG_REFUSAL_SERVOS_STARTING);
+        return;
+    }
     if (!on) {
-        if (app->engaged) disengage(app);
+        if (app->engaged || app->jog) disengage(app);
+        app->jog = false;
         return;
     }
     if (app->engaged) return;
@@ -159,6 +270,10 @@ static void on_engage(app_t *app, bool on)
         refuse(app, why);
         return;
     }
+    if (app->jog) {   /* from a jogged pose: park first, as after enable */
+        app->jog = false;
+        disengage(app);
+    }
     if (app->parked && !head_for(app, app->set_position)) {
         refuse(app, MSG_REFUSAL_NO_ROUTE);
         return;
@@ -166,6 +281,8 @@ static void on_engage(app_t *app, bool on)
     app->engaged = true;
     app->link_lost = false;
     app->servo_reset = false;
+    app->stream_imu_every = 0;   /* the link and the main loop are the flight's */
+    app->stream_servos = false;
 }
 
 static void on_frame(app_t *app, const uint8_t *payload, size_t len)
@@ -174,6 +291,9 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     msg_engage_t engage;
     msg_set_position_t set;
     msg_drone_attitude_t attitude;
+    msg_jog_t jog;
+    msg_torque_t torque;
+    msg_stream_t stream;
     if (len > 0 && payload[0] == MSG_HEARTBEAT_ID) {
         app->link_echoes++;   /* the board's own output come back: not the drone, not life */
         return;
@@ -189,6 +309,12 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         app->drone_attitudes++;
         (void)stab_drone_attitude(&app->stab, attitude.seq, attitude.stamp_us, attitude.roll, attitude.pitch,
                                   now_us(app));
+    } else if (msg_jog_unpack(payload, len, &jog)) {
+        on_jog(app, &jog);
+    } else if (msg_torque_unpack(payload, len, &torque)) {
+        on_torque(app, torque.on != 0);
+    } else if (msg_stream_unpack(payload, len, &stream)) {
+        on_stream(app, &stream);
     } else {
         app->commands_ignored++;
         return;
@@ -243,6 +369,12 @@ static bool sample_imu(app_t *app, mpu_sample_t *out)
         imu_stale_tick(app);   /* one I2C glitch is no fault; a chip gone is, in a few ticks */
         return false;
     }
+    if (app->stream_imu_every && ++app->stream_imu_ticks >= app->stream_imu_every) {
+        app->stream_imu_ticks = 0;   /* sent by app_poll, outside the tick */
+        memcpy(app->imu_burst, out->burst, sizeof app->imu_burst);
+        app->imu_burst_us = now_us(app);
+        app->imu_raw_ready = true;
+    }
     app->imu_saturated = out->saturated;
     if (!out->fresh || out->saturated) {
         imu_stale_tick(app);   /* no new sample, or one whose true value is unknown */
@@ -259,7 +391,7 @@ static bool start_motion(app_t *app)
 {
     uint16_t units[SBUS_SERVOS];
     float q[3];
-    if (app->bus.state != SBUS_RUNNING || app->motion_refused) return false;
+    if (app->bus.state != SBUS_RUNNING || app->motion_refused || app->bus.refit || app->bus.refitting) return false;
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         if (!app->bus.servo[i].status_valid) return false;
         units[i] = app->bus.servo[i].present_position;
@@ -270,7 +402,10 @@ static bool start_motion(app_t *app)
         return false;
     }
     memcpy(app->q_cmd, q, sizeof q);
-    if (!motion_go(&app->motion, PARK)) app->motion_refused = true;
+    app->jog = app->start_to != APP_START_PARK;   /* (held or jogged: engage parks first) */
+    const float *goal = app->start_to == APP_START_JOG ? app->jog_goal : app->start_to == APP_START_HOLD ? q : PARK;
+    app->start_to = APP_START_PARK;
+    if (!motion_go(&app->motion, goal)) app->motion_refused = true;
     return true;
 }
 
@@ -299,6 +434,10 @@ static void command_servos(app_t *app)
         { MODEL_WORKING_SPEED, MODEL_WORKING_SPEED, MODEL_WORKING_SPEED },
     };
     motion_t *mo = &app->motion;
+    if (app->bus.limp) {
+        sbus_read(&app->bus);   /* nothing commanded; where the hands put it is read */
+        return;
+    }
     if (!mo->started && !start_motion(app)) return;
     float p[3], q[3];
     uint16_t units[SBUS_SERVOS];
@@ -368,7 +507,7 @@ static void tick(app_t *app)
     }
     app->last_tick_us = now;
     if (sampled) stab_sample(&app->stab, imu.accel_g, imu.gyro_rad_s, now, app->engaged);
-    const bool tracking = track_update(&app->track, &app->bus, now);
+    const bool tracking = !app->bus.limp && track_update(&app->track, &app->bus, now);
     watch_resets(app);
     const bool usable = imu_usable(app);
     if (app->engaged && (!usable || tracking)) {
@@ -409,8 +548,10 @@ static uint8_t arm_state(const app_t *app)
 {
     const motion_t *mo = &app->motion;
     if (!app->enabled) return MSG_STATE_OFF;
+    if (app->bus.limp) return MSG_STATE_LIMP;
     if (!mo->started) return MSG_STATE_STARTING;
     if (app->engaged && app->parked) return mo->arrived ? MSG_STATE_HOLDING : MSG_STATE_MOVING;
+    if (app->jog) return mo->arrived ? MSG_STATE_JOGGED : MSG_STATE_JOGGING;
     return app->parked && mo->arrived ? MSG_STATE_PARKED : MSG_STATE_PARKING;
 }
 
@@ -427,13 +568,21 @@ static void current_joints(const app_t *app, float q[3])
     }
 }
 
+/* One LLCP frame to the drone (the heartbeat is the longest); false if the link cannot take it now. */
+typedef char heartbeat_is_longest[(MSG_HEARTBEAT_SIZE >= MSG_IMU_RAW_SIZE && MSG_HEARTBEAT_SIZE >= MSG_SERVO_STATUS_SIZE) ? 1 : -1];
+static bool send_payload(app_t *app, const uint8_t *payload, size_t len)
+{
+    char frame[LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE)];
+    const size_t n = llcp_encode_tx(payload, len, frame, sizeof frame);
+    return n > 0 && app->port->link_write(app->port->ctx, (const uint8_t *)frame, n);
+}
+
 static void send_heartbeat(app_t *app)
 {
     const llcp_rx_t *rx = &app->link;
     msg_heartbeat_t hb;
     float q[3];
     uint8_t payload[MSG_HEARTBEAT_SIZE];
-    char frame[LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE)];
     uint32_t timeouts = 0;
     for (int i = 0; i < SBUS_SERVOS; ++i) timeouts += app->bus.servo[i].timeouts;
     current_joints(app, q);
@@ -478,13 +627,44 @@ static void send_heartbeat(app_t *app)
     hb.servo3_voltage = s[2].present_voltage;
     hb.servo3_temperature = s[2].present_temperature;
     hb.servo3_load = s[2].present_load;
-    size_t len = msg_heartbeat_pack(&hb, payload, sizeof payload);
-    size_t n = llcp_encode_tx(payload, len, frame, sizeof frame);
-    if (n > 0 && app->port->link_write(app->port->ctx, (const uint8_t *)frame, n)) {
+    if (send_payload(app, payload, msg_heartbeat_pack(&hb, payload, sizeof payload))) {
         app->heartbeats_sent++;
         app->faults_since_heartbeat = 0;
     } else {
         app->heartbeats_dropped++;
+    }
+}
+
+static int16_t be16(const uint8_t *b)
+{
+    return (int16_t)(uint16_t)((unsigned)b[0] << 8 | b[1]);
+}
+
+/* The service streams, outside the tick: a frame the link cannot take now is dropped. */
+static void send_streams(app_t *app)
+{
+    uint8_t payload[MSG_IMU_RAW_SIZE > MSG_SERVO_STATUS_SIZE ? MSG_IMU_RAW_SIZE : MSG_SERVO_STATUS_SIZE];
+    if (app->imu_raw_ready) {
+        const uint8_t *b = app->imu_burst + 1;   /* after INT_STATUS: ACCEL_XOUT_H .. GYRO_ZOUT_L */
+        const msg_imu_raw_t m = {
+            .seq = app->imu_raw_seq++, .stamp_us = app->imu_burst_us,
+            .ax = be16(b), .ay = be16(b + 2), .az = be16(b + 4), .temperature = be16(b + 6),
+            .gx = be16(b + 8), .gy = be16(b + 10), .gz = be16(b + 12),
+            .fresh = (app->imu_burst[0] & MPU_INT_DATA_RDY) != 0u,
+        };
+        app->imu_raw_ready = false;
+        (void)send_payload(app, payload, msg_imu_raw_pack(&m, payload, sizeof payload));
+    }
+    if (app->stream_servos && app->bus.status_reads != app->servo_reads_streamed) {
+        const unsigned i = app->bus.last_read;
+        const sbus_servo_t *s = &app->bus.servo[i];
+        const msg_servo_status_t m = {
+            .seq = app->servo_status_seq++, .stamp_us = now_us(app), .servo = (uint8_t)i,
+            .goal = app->bus.goal[i], .position = s->present_position, .speed = s->present_speed,
+            .load = s->present_load,
+        };
+        app->servo_reads_streamed = app->bus.status_reads;
+        (void)send_payload(app, payload, msg_servo_status_pack(&m, payload, sizeof payload));
     }
 }
 
@@ -533,4 +713,5 @@ void app_poll(app_t *app)
         if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) app->last_heartbeat_us = now;
         send_heartbeat(app);
     }
+    send_streams(app);
 }

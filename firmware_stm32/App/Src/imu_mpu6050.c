@@ -48,17 +48,17 @@ static uint32_t full_scale(int32_t v)
 
 bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
 {
-    uint8_t burst[MPU_BURST_BYTES];
-    if (!port->imu_read(port->ctx, address, MPU_REG_INT_STATUS, burst, sizeof burst)) {
+    const uint8_t *burst = out->burst;
+    if (!port->imu_read(port->ctx, address, MPU_REG_INT_STATUS, out->burst, sizeof out->burst)) {
         return false;
     }
     /* accel x, y, z, temperature, gyro x, y, z: the six axes written out, each read once */
     const uint8_t *b = burst + (MPU_REG_ACCEL_XOUT_H - MPU_REG_INT_STATUS);
     const int32_t ax = be16(b), ay = be16(b + 2), az = be16(b + 4);
     const int32_t gx = be16(b + 8), gy = be16(b + 10), gz = be16(b + 12);
-    out->accel_g[0] = (float)ax * MODEL_ACCEL_G_PER_LSB;
-    out->accel_g[1] = (float)ay * MODEL_ACCEL_G_PER_LSB;
-    out->accel_g[2] = (float)az * MODEL_ACCEL_G_PER_LSB;
+    out->accel_g[0] = (float)ax * MODEL_ACCEL_K_X + MODEL_ACCEL_C_X;   /* calibrated (model file) */
+    out->accel_g[1] = (float)ay * MODEL_ACCEL_K_Y + MODEL_ACCEL_C_Y;
+    out->accel_g[2] = (float)az * MODEL_ACCEL_K_Z + MODEL_ACCEL_C_Z;
     out->gyro_rad_s[0] = (float)gx * MODEL_GYRO_RAD_PER_LSB;
     out->gyro_rad_s[1] = (float)gy * MODEL_GYRO_RAD_PER_LSB;
     out->gyro_rad_s[2] = (float)gz * MODEL_GYRO_RAD_PER_LSB;

@@ -83,6 +83,7 @@ static void forget_servo_state(sbus_t *bus)
     bus->command_pending = false;
     bus->read_due = false;
     bus->read_attempt = 0;
+    bus->limp = bus->limp_pending = false;
 }
 
 void sbus_power(sbus_t *bus, bool on)
@@ -95,12 +96,27 @@ void sbus_power(sbus_t *bus, bool on)
 
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS])
 {
-    if (bus->state != SBUS_RUNNING) {
+    if (bus->state != SBUS_RUNNING || bus->limp) {
         return;
     }
     memcpy(bus->goal, goal, sizeof bus->goal);
     memcpy(bus->speed, speed, sizeof bus->speed);
     bus->command_pending = true;
+}
+
+void sbus_limp(sbus_t *bus, bool on)
+{
+    if (bus->state != SBUS_RUNNING || on == bus->limp) return;
+    bus->limp = on;
+    bus->limp_pending = on;
+    bus->command_pending = false;
+    /* torque back on: each servo set up again as after a brown-out, holding where it stands */
+    bus->refit = on ? 0u : (uint8_t)((1u << SBUS_SERVOS) - 1u);
+}
+
+void sbus_read(sbus_t *bus)
+{
+    if (bus->state == SBUS_RUNNING) bus->read_due = true;
 }
 
 uint32_t sbus_tick_bus_time_us(const sbus_t *bus)
@@ -442,7 +458,8 @@ static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_
     s->failed = false;
     s->reads++;
     const uint8_t *limit = p + (AX_TORQUE_LIMIT - SBUS_STATUS_ADDR);
-    if ((limit[0] | limit[1] << 8) == MAX_TORQUE && bus->state == SBUS_RUNNING) {
+    /* (limp: torque off on purpose; a reset then is set right when the torque comes back on) */
+    if ((limit[0] | limit[1] << 8) == MAX_TORQUE && bus->state == SBUS_RUNNING && !bus->limp) {
         s->resets++;
         bus->resets++;
         bus->refit |= (uint8_t)(1u << (s - bus->servo));
@@ -513,7 +530,11 @@ static void run(sbus_t *bus)
         bus->read_index = (uint8_t)(bus->read_index + 1u < SBUS_SERVOS ? bus->read_index + 1u : 0u);
         return;
     }
-    if (bus->command_pending) {
+    if (bus->limp_pending) {
+        static const uint8_t torque_off = 0u;
+        const size_t len = dxl_build_write(bus->tx, sizeof bus->tx, DXL_BROADCAST_ID, AX_TORQUE_ENABLE, &torque_off, 1u);
+        if (send(bus, bus->tx, len, REPLY_NONE)) bus->limp_pending = false;
+    } else if (bus->command_pending) {
         if (send(bus, bus->sync_pkt, sync_fill(bus), REPLY_NONE)) {
             bus->command_pending = false;
             bus->read_due = true;

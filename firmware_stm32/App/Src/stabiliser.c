@@ -47,6 +47,9 @@ static __attribute__((noinline)) void start(stab_t *s, const float accel_g[3], c
     }
     est_reset(&s->attitude, accel_g);
     est_quat_reset(&s->quat, accel_g);
+    s->quat.bias[0] = MODEL_GYRO_BIAS0_X;   /* the model file's calibration; learnt on at rest */
+    s->quat.bias[1] = MODEL_GYRO_BIAS0_Y;
+    s->quat.bias[2] = MODEL_GYRO_BIAS0_Z;
     s->started = true;
 }
 

@@ -1,0 +1,223 @@
+"""IMU calibrations, end to end as a user runs them: `uavarm.calibrate` over the link to a
+simulated board behind a pseudo-terminal (the SITL), whose IMU has errors the model file
+does not know (its "hardware truth"). The user's part (turning the board, pressing Enter,
+answering yes) is played by callbacks that move the simulated board.
+
+Oracles: the simulated sensor's own drawn errors (bias, scale, gyro offset) and the mounting
+it was given, and synthetic readings built from a known bias and scale.
+"""
+from __future__ import annotations
+
+import math
+import shutil
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from uavarm import calibrate, calibration
+from uavarm.board import Gravity, Rocking
+from uavarm.calibration import CalibrationError, Window
+from uavarm.imu_model import Mpu6050Sensor
+from uavarm.link import ArmLink
+from uavarm.model import config
+from uavarm.sitl import Sitl
+
+SPEED = 4.0                        # simulated seconds per real second
+SECONDS = 0.5                      # real seconds of samples per position (2 simulated)
+# (roll, pitch) that put each IMU axis up, then down (IMU axes = base axes here)
+SIX = [(0.0, 0.0), (math.pi, 0.0), (0.0, -math.pi / 2), (0.0, math.pi / 2), (math.pi / 2, 0.0), (-math.pi / 2, 0.0)]
+
+
+# ---------------------------------------------------------------- the fit alone
+
+def test_the_fit_recovers_bias_and_scale_from_tilted_positions():
+    rng = np.random.default_rng(3)
+    bias, scale = np.array([0.041, -0.033, 0.072]), np.array([1.021, 0.978, 1.012])
+    ups = []
+    for axis in range(3):
+        for sign in (1, -1):
+            u = np.zeros(3)
+            u[axis] = sign
+            u += rng.normal(0, 0.08, 3)            # the board held a few degrees off
+            ups.append(u / np.linalg.norm(u))
+    ups += [v / np.linalg.norm(v) for v in rng.normal(size=(4, 3))]   # and some more positions
+    windows = [Window(scale * u + bias, np.zeros(3), 100) for u in ups]
+    fit = calibration.fit_accel(windows)
+    assert np.allclose(fit.bias, bias, atol=1e-9) and np.allclose(fit.scale, scale, atol=1e-9)
+
+
+def test_the_fit_refuses_an_axis_never_turned_down():
+    windows = [Window(np.array(u, dtype=float), np.zeros(3), 100)
+               for u in ([0, 0, 1], [0, 0, -1], [1, 0, 0], [0.7, 0.7, 0], [0, 1, 0], [0, -1, 0])]
+    with pytest.raises(CalibrationError, match="X axis was never pointed straight up and straight down"):
+        calibration.fit_accel(windows)
+
+
+# ---------------------------------------------------------------- through the SITL
+
+@pytest.fixture
+def model_copy(tmp_path):
+    path = tmp_path / "manipulator.toml"
+    shutil.copy(config.DEFAULT_MODEL, path)
+    return path
+
+
+def run_sitl(**board_options):
+    s = Sitl(speed=SPEED, **board_options)
+    threading.Thread(target=s.run, daemon=True).start()
+    return s
+
+
+def sensor(profile="datasheet", seed=1):
+    """Bench conditions: motors off, so no propeller vibration."""
+    return Mpu6050Sensor(profile, seed=seed, vibration_from=math.inf)
+
+
+def turning(sitl, orientations, hold=0.15):
+    """The user: at each prompt, the board turned to the next orientation and held still."""
+    it = iter(orientations)
+
+    def ask(text):
+        roll, pitch = next(it)
+        sitl.board.motion = Gravity(roll, pitch)
+        time.sleep(hold)
+    return ask
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_imu_calibration_recovers_the_sensors_errors(model_copy, seed):
+    s = run_sitl(sensor=sensor(seed=seed))
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+    finally:
+        s.stop()
+    truth = s.board.sensor.draw
+    cal = config.load(model_copy).imu_calibration
+    assert np.abs(np.array(cal.accel_bias) - truth.accel_bias).max() <= 0.002            # 2 mg
+    assert np.abs(np.array(cal.accel_scale) / truth.accel_scale - 1).max() <= 0.003      # 0.3 %
+    assert np.abs(np.array(cal.gyro_bias_dps) - np.degrees(truth.gyro_bias)).max() <= 0.05
+    text = model_copy.read_text()
+    assert "# Calibration (`uavarm calibrate imu`)" in text and "# Landing legs, as joint-1 angles" in text
+
+
+def test_moving_during_a_position_is_refused_and_the_model_left_as_it_was(model_copy, capsys):
+    s = run_sitl(sensor=sensor())
+    before = model_copy.read_bytes()
+
+    def shaking(text):
+        s.board.motion = Rocking(math.radians(10), 0.0, 2.0)
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            with pytest.raises(CalibrationError, match="the board moved"):
+                calibrate.imu(arm, model_copy, shaking, lambda q: True, seconds=SECONDS)
+            assert not arm.collect("imu_raw", 0.3), "the stream is stopped again"
+    finally:
+        s.stop()
+    assert model_copy.read_bytes() == before
+    assert capsys.readouterr().out.count("the board moved") == calibrate.TRIES - 1
+
+
+def test_declining_the_diff_writes_nothing(model_copy):
+    s = run_sitl(sensor=sensor())
+    before = model_copy.read_bytes()
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            assert not calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: False, seconds=SECONDS)
+    finally:
+        s.stop()
+    assert model_copy.read_bytes() == before
+
+
+def test_mounting_calibration_finds_how_the_imu_sits(model_copy):
+    truth = (2.5, -3.0, 0.0)
+    s = run_sitl(sensor=sensor("ideal"), imu_mounting_rpy_deg=truth)
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            assert calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS,
+                                      uncalibrated_ok=True)   # (an ideal IMU)
+    finally:
+        s.stop()
+    roll, pitch, yaw = config.load(model_copy).imu_mounting_rpy_deg
+    assert roll == pytest.approx(truth[0], abs=0.05) and pitch == pytest.approx(truth[1], abs=0.05) and yaw == 0.0
+
+
+def test_mounting_refuses_an_uncalibrated_accelerometer(model_copy):
+    s = run_sitl(sensor=sensor())
+    before = model_copy.read_bytes()
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            with pytest.raises(CalibrationError, match="run `uavarm calibrate imu` first"):
+                calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS)
+    finally:
+        s.stop()
+    assert model_copy.read_bytes() == before
+
+
+def test_mounting_after_imu_calibration_on_a_datasheet_imu(model_copy):
+    """The whole bench sequence: the accelerometer first, then the mounting, on an IMU with
+    datasheet errors sitting 2.5 deg / -3 deg on the base."""
+    truth = (2.5, -3.0, 0.0)
+    s = run_sitl(sensor=sensor(seed=2), imu_mounting_rpy_deg=truth)
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            # the six positions turn the base; the IMU's axes are the base's turned by the mounting
+            assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+            assert calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS)
+    finally:
+        s.stop()
+    roll, pitch, _ = config.load(model_copy).imu_mounting_rpy_deg
+    assert roll == pytest.approx(truth[0], abs=0.2) and pitch == pytest.approx(truth[1], abs=0.2)
+
+
+def test_the_command_line_names_a_wrong_port(model_copy):
+    before = model_copy.read_bytes()
+    out = subprocess.run([sys.executable, "-m", "uavarm.cli", "calibrate", "imu", "/dev/no-such-port",
+                          "--model", str(model_copy), "--yes"], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 1 and "cannot open the serial port" in out.stderr and "left as it was" in out.stderr
+    assert "Traceback" not in out.stderr and model_copy.read_bytes() == before
+
+
+def test_a_model_value_the_loader_refuses_is_never_written(model_copy):
+    from uavarm import model_edit
+    before = model_copy.read_bytes()
+    with pytest.raises(config.ModelError, match="imu.accel_scale"):
+        model_edit.write(model_copy, {"imu.accel_scale": [1.0, 1.5, 1.0]}, lambda q: True)
+    assert model_copy.read_bytes() == before
+
+
+# ---------------------------------------------------------------- the firmware applies them
+
+def test_the_firmware_undoes_the_calibrated_bias_and_scale_and_starts_from_the_gyro_offset():
+    from uavarm import variants
+    from uavarm.mpu6050_sim import Mpu6050
+    bias, scale, gyro_dps = [0.05, -0.03, 0.07], [1.02, 0.98, 1.01], [1.5, -2.0, 0.75]
+    v = variants.build({"imu.accel_bias": bias, "imu.accel_scale": scale, "imu.gyro_bias_dps": gyro_dps})
+    ffi, lib, m = v.ffi, v.lib, v.model
+    hp = ffi.new("host_port_t *")
+    lib.host_port_init(hp, m.servo_baud, m.imu_address)
+    Mpu6050(memoryview(ffi.buffer(hp.imu_regs)))
+    port = ffi.addressof(hp[0], "port")
+    assert lib.mpu_init(port, m.imu_address)
+    counts = [3000, -7000, 9500]                                 # what the chip reads (8192 counts/g)
+    words = counts + [0, 0, 0, 0]                                # temperature, gyro
+    hp.imu_regs[0x3B:0x3B + 14] = b"".join(w.to_bytes(2, "big", signed=True) for w in words)   # ACCEL_XOUT_H..
+    hp.imu_regs[0x3A] = 0x01                                     # INT_STATUS: DATA_RDY
+    out = ffi.new("mpu_sample_t *")
+    assert lib.mpu_sample(port, m.imu_address, out)
+    expected = [(c / 8192 - b) / s for c, b, s in zip(counts, bias, scale)]
+    assert list(out.accel_g) == pytest.approx(expected, abs=2e-7)
+    stab = ffi.new("stab_t *")
+    lib.stab_reset(stab)
+    lib.stab_sample(stab, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], 0, False)
+    assert list(stab.quat.bias) == pytest.approx(np.radians(gyro_dps), abs=1e-6)   # mounting: identity

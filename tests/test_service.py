@@ -1,0 +1,256 @@
+"""The service commands for bring-up and calibration, on the simulated board: torque off and
+on (limp for positioning by hand), jog, and the raw IMU and servo status streams. Each is
+driven through the link bytes, with tests/invariants.py watching every step (every move
+checked against the limits, the body and the legs by plain geometry).
+
+Oracles: the AX-12A control table (Torque Enable at 24, Torque Limit at 34; 1023 units over
+300 degrees), the MPU-6050 register map (ACCEL_XOUT_H at 0x3B, big-endian counts, 8192
+counts/g at +-4 g), the message layouts as written, and the simulated servos' own shafts.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from invariants import Invariants
+from simboard_tools import (
+    FAULT, MODEL, PARK_SPEED, PARK_UNITS, BusLog, make_board, ready, shaft_units, sync_goal_speed,
+)
+from uavarm import messages
+
+REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
+STATE = {name: k for k, (name, _) in enumerate(messages.STATES)}
+TORQUE_ENABLE, TORQUE_LIMIT = 24, 34
+UNIT_DEG = 300.0 / 1023
+COUNTS_PER_G = 32768 / 4                 # MPU-6050 at +-4 g (the model's range)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def four_g_range():
+    assert MODEL.accel_range_g == 4, "the counts-per-g oracle below is for +-4 g"
+
+
+def parked(**kw):
+    board = make_board(**kw)
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.5) is not None
+    assert inv.run_until(lambda: state(board) == "parked", 2.0) is not None
+    return board, inv
+
+
+def state(board) -> str:
+    return messages.STATES[board.heartbeats[-1]["state"]][0] if board.heartbeats else "none"
+
+
+def refusal(board) -> str:
+    return messages.REFUSALS[board.heartbeats[-1]["refusal"]][0]
+
+
+def after_heartbeat(inv):
+    inv.next_heartbeat()
+    return inv.board.heartbeats[-1]
+
+
+def torque_writes(inv, since):
+    """(servo id, value) of every WRITE to Torque Enable sent after `since`."""
+    return [(p.id, p.params[1]) for p in inv.log.tx
+            if p.start >= since and p.inst == 0x03 and p.params[0] == TORQUE_ENABLE]
+
+
+# ---------------------------------------------------------------- torque off and on
+
+def test_torque_off_makes_the_arm_limp_without_a_brown_out_and_still_reads_it():
+    board, inv = parked()
+    t0 = board.time
+    board.send("torque", on=0)
+    inv.run(0.3)
+    assert torque_writes(inv, t0) == [(0xFE, 0)], "one broadcast WRITE of Torque Enable 0"
+    assert all(s.register("torque_enable") == 0 for s in board.bus.servos) and board.servo_power
+    assert not inv.log.syncs(t0 + 0.02), "nothing commanded while limp"
+    # turned by hand: 40 units on joint 2 (clear of everything), read back in the heartbeat
+    target = PARK_UNITS[1] + 40
+    board.bus.servos[1].turn_by_hand(target)
+    hb = after_heartbeat(inv)
+    hb = after_heartbeat(inv)
+    assert state(board) == "limp"
+    assert math.degrees(hb["q2"]) == pytest.approx(MODEL.park_deg[1] + 40 * UNIT_DEG, abs=UNIT_DEG)
+    assert not hb["faults"] & (FAULT["servo_reset"] | FAULT["servo_tracking"] | FAULT["command_refused"])
+    assert hb["servo_resets"] == 0
+    # torque on: each servo set up again, holding where it stands (nothing moves)
+    t1 = board.time
+    board.send("torque", on=1)
+    assert inv.run_until(lambda: state(board) == "jogged", 1.0) is not None
+    assert sorted(torque_writes(inv, t1)) == [(1, 1), (2, 1), (3, 1)]
+    inv.run(0.5)
+    assert shaft_units(board)[1] == pytest.approx(target, abs=1.0)
+    assert all(s.register("torque_enable") == 1 for s in board.bus.servos)
+    assert board.heartbeats[-1]["servo_resets"] == 0
+
+
+def test_service_commands_are_refused_while_engaged_or_disabled():
+    board = make_board()
+    inv = Invariants(board, BusLog(board))
+    inv.run(0.6)
+    for name, fields in (("torque", {"on": 0}), ("jog", {"joint": 1, "mode": 0, "value": 0.1})):
+        board.send(name, **fields)
+        after_heartbeat(inv)
+        assert refusal(board) == "not_enabled", name
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.5) is not None
+    board.send("engage", on=1)
+    assert inv.run_until(lambda: board.heartbeats[-1]["engaged"], 1.0) is not None
+    for name, fields in (("torque", {"on": 0}), ("jog", {"joint": 1, "mode": 0, "value": 0.1}),
+                         ("stream", {"imu_every": 1, "servos": 1})):
+        board.send(name, **fields)
+        after_heartbeat(inv)
+        assert refusal(board) == "engaged" and board.heartbeats[-1]["engaged"], name
+    assert all(s.register("torque_enable") == 1 for s in board.bus.servos)
+
+
+def test_engage_while_limp_turns_the_torque_on_and_parks_first():
+    board, inv = parked()
+    board.send("torque", on=0)
+    inv.run(0.2)
+    board.bus.servos[0].turn_by_hand(PARK_UNITS[0] + 60)
+    inv.run(0.1)
+    board.send("engage", on=1)
+    after_heartbeat(inv)
+    assert refusal(board) == "servos_starting" and not board.heartbeats[-1]["engaged"]
+    assert inv.run_until(lambda: state(board) == "parked", 3.0) is not None
+    assert shaft_units(board)[0] == pytest.approx(PARK_UNITS[0], abs=1.5)
+    board.send("engage", on=1)
+    assert inv.run_until(lambda: board.heartbeats[-1]["engaged"], 1.0) is not None
+
+
+# ---------------------------------------------------------------- jog
+
+def test_jog_to_an_angle_and_by_units_at_park_speed():
+    board, inv = parked()
+    t0 = board.time
+    target = math.radians(MODEL.park_deg[0] + 20.0)
+    board.send("jog", joint=1, mode=0, value=target)
+    assert inv.run_until(lambda: state(board) in ("jogging", "jogged"), 0.6) is not None
+    assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
+    speeds = {tuple(sync_goal_speed(p.raw)[1]) for p in inv.log.syncs(t0)}
+    assert speeds == {(PARK_SPEED,) * 3}
+    assert shaft_units(board)[0] == pytest.approx(PARK_UNITS[0] + 20.0 / UNIT_DEG, abs=1.0)
+    goal_before = sync_goal_speed(inv.log.syncs()[-1].raw)[0]
+    board.send("jog", joint=2, mode=1, value=-25.0)
+    assert inv.run_until(lambda: sync_goal_speed(inv.log.syncs()[-1].raw)[0][1] == goal_before[1] - 25, 2.0)
+    last = sync_goal_speed(inv.log.syncs()[-1].raw)[0]
+    assert (last[0], last[2]) == (goal_before[0], goal_before[2])
+    assert not board.heartbeats[-1]["faults"] & FAULT["command_refused"]
+
+
+@pytest.mark.parametrize("joint, mode, value", [
+    (0, 0, 0.0), (4, 0, 0.0), (1, 2, 0.0),                 # no such joint or mode
+    (2, 0, float("nan")), (1, 1, float("inf")),            # not finite
+    (2, 0, math.radians(125.0)),                           # beyond joint 2's 120 deg limit
+    (1, 0, math.radians(150.0)),                           # beyond joint 1's 145 deg limit
+    (1, 1, 2000.0),                                        # beyond the servo's 0..1023 units
+])
+def test_a_bad_jog_is_refused_and_nothing_moves(joint, mode, value):
+    board, inv = parked()
+    before = shaft_units(board)
+    n = len(inv.log.syncs())
+    board.send("jog", joint=joint, mode=mode, value=value)
+    after_heartbeat(inv)
+    assert refusal(board) == "bad_jog" and state(board) == "parked"
+    inv.run(0.3)
+    assert {tuple(sync_goal_speed(p.raw)[0]) for p in inv.log.syncs()[n:]} <= {tuple(round(u) for u in PARK_UNITS)}
+    assert np.allclose(shaft_units(board), before, atol=1.0)
+
+
+def test_jog_while_limp_turns_the_torque_on_and_goes_there():
+    board, inv = parked()
+    board.send("torque", on=0)
+    inv.run(0.2)
+    board.bus.servos[2].turn_by_hand(PARK_UNITS[2] + 30)
+    inv.run(0.1)
+    board.send("jog", joint=3, mode=1, value=-30.0)
+    assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
+    assert shaft_units(board)[2] == pytest.approx(PARK_UNITS[2], abs=1.5)
+    assert all(s.register("torque_enable") == 1 for s in board.bus.servos)
+
+
+def test_engage_from_a_jogged_pose_parks_first():
+    board, inv = parked()
+    board.send("jog", joint=1, mode=0, value=math.radians(MODEL.park_deg[0] + 30.0))
+    assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
+    t0 = board.time
+    board.send("engage", on=1)
+    park = tuple(round(u) for u in PARK_UNITS)
+    assert inv.run_until(lambda: any(tuple(sync_goal_speed(p.raw)[0]) == park for p in inv.log.syncs(t0)), 3.0)
+    assert inv.run_until(lambda: state(board) == "holding", 3.0) is not None
+
+
+# ---------------------------------------------------------------- streams
+
+def test_the_raw_imu_stream_carries_the_chips_counts():
+    board = make_board()
+    inv = Invariants(board, BusLog(board))
+    board.send("stream", imu_every=2, servos=0)
+    inv.run(1.0)
+    frames = board.streamed["imu_raw"]
+    assert 45 <= len(frames) <= 51                       # every second tick of 100 Hz
+    assert [f["seq"] for f in frames] == list(range(frames[0]["seq"], frames[0]["seq"] + len(frames)))
+    gaps = np.diff([f["stamp_us"] for f in frames])
+    assert np.all(np.abs(gaps - 20_000) <= 200)
+    a = np.array([[f["ax"], f["ay"], f["az"]] for f in frames], dtype=float) / COUNTS_PER_G
+    assert np.linalg.norm(a, axis=1) == pytest.approx(1.0, abs=0.03)   # still: gravity alone
+    assert all(f["fresh"] for f in frames[1:])
+    board.send("stream", imu_every=0, servos=0)
+    inv.run(0.1)
+    n = len(board.streamed["imu_raw"])
+    inv.run(0.3)
+    assert len(board.streamed["imu_raw"]) == n
+
+
+def test_the_servo_stream_reports_each_status_read():
+    board, inv = parked()
+    board.send("stream", imu_every=0, servos=1)
+    t0 = board.time
+    inv.run(0.9)
+    frames = board.streamed["servo_status"]
+    reads = len(inv.log.reads(t0 + 0.02))
+    assert abs(len(frames) - reads) <= 2 and len(frames) >= 80
+    assert {f["servo"] for f in frames} == {0, 1, 2}
+    park = [round(u) for u in PARK_UNITS]
+    for f in frames:
+        assert f["goal"] == park[f["servo"]]
+        assert abs(f["position"] - board.bus.servos[f["servo"]].register("present_position")) <= 1
+    board.send("engage", on=1)                                         # engage stops the streams
+    assert inv.run_until(lambda: board.heartbeats[-1]["engaged"], 1.0) is not None
+    n = len(board.streamed["servo_status"])
+    inv.run(0.3)
+    assert len(board.streamed["servo_status"]) == n
+
+
+# ---------------------------------------------------------------- from the command line
+
+def test_the_command_line_limps_stiffens_and_jogs_a_sitl():
+    import subprocess
+    import sys
+    import threading
+    from uavarm.sitl import Sitl
+    s = Sitl(speed=2.0)
+    threading.Thread(target=s.run, daemon=True).start()
+    run = lambda *a: subprocess.run([sys.executable, "-m", "uavarm.cli", "link", s.device, *a],
+                                    capture_output=True, text=True, timeout=60)
+    try:
+        assert run("enable").returncode == 0
+        out = run("limp")
+        assert out.returncode == 0 and " limp " in out.stdout, out
+        out = run("stiff")
+        assert out.returncode == 0 and " jogged " in out.stdout, out
+        out = run("jog", "1", "25")
+        assert out.returncode == 0, out
+        out = run("jog", "2", "130")                       # beyond joint 2's 120 deg
+        assert out.returncode == 1 and "jog refused" in out.stderr and "Traceback" not in out.stderr
+        out = run("jog", "4", "0")
+        assert out.returncode == 2 and "joint must be 1, 2 or 3" in out.stderr
+    finally:
+        s.stop()

@@ -1,0 +1,121 @@
+"""`uavarm calibrate imu|mounting PORT`: guided calibrations over the link, written into the
+model file. Each step says what to do, waits for Enter, takes the streamed raw IMU samples,
+checks they are still, and says what it measured; a result that is implausible or noisy is
+refused with the reason and the model file is left as it was.
+
+The procedures take `ask(text)` (wait for the user; the terminal's Enter) and
+`confirm(question)` (yes or no), so the tests drive them through a simulated board exactly
+as a user does on the bench."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from . import calibration, model_edit
+from .calibration import CalibrationError, Window
+from .model import config
+
+# The six positions: each IMU axis straight up, then straight down (the axes printed on
+# the MPU-6050 breakout).
+POSITIONS = (
+    "flat, the IMU's Z axis up (components up)",
+    "upside down, the IMU's Z axis down",
+    "on its side, the IMU's X axis up",
+    "on its other side, the IMU's X axis down",
+    "on an edge, the IMU's Y axis up",
+    "on the opposite edge, the IMU's Y axis down",
+)
+TRIES = 3
+
+
+def _still_window(arm, model, ask, text: str, seconds: float) -> Window:
+    for attempt in range(TRIES):
+        ask(text)
+        try:
+            return calibration.window(arm.collect("imu_raw", seconds), model.accel_range_g, model.gyro_range_dps)
+        except CalibrationError as exc:
+            if attempt == TRIES - 1:
+                raise
+            print(f"  {exc}")
+    raise AssertionError("unreachable")
+
+
+def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
+    """Accelerometer bias and scale from six still positions, and the gyro's zero-rate offset."""
+    model = config.load(model_path)
+    arm.stream(imu_every=1)
+    try:
+        windows = []
+        for k, where in enumerate(POSITIONS, 1):
+            w = _still_window(arm, model, ask, f"Position {k}/{len(POSITIONS)}: the board {where}. "
+                                               "Hold it still and press Enter.", seconds)
+            print(f"  {w.samples} samples, mean ({w.accel_g[0]:+.3f}, {w.accel_g[1]:+.3f}, {w.accel_g[2]:+.3f}) g")
+            windows.append(w)
+    finally:
+        arm.stream(imu_every=0)
+    fit = calibration.fit_accel(windows)
+    gyro = calibration.gyro_bias(windows)
+    print(f"accelerometer: bias ({', '.join(f'{b * 1000:+.1f}' for b in fit.bias)}) mg, "
+          f"scale ({', '.join(f'{s:.4f}' for s in fit.scale)}), fit rms {fit.residual_g * 1000:.2f} mg over "
+          f"{len(windows)} positions")
+    print(f"gyro zero-rate offset: ({', '.join(f'{g:+.2f}' for g in gyro)}) deg/s")
+    return model_edit.write(model_path, {
+        "imu.accel_bias": [round(float(b), 4) for b in fit.bias],
+        "imu.accel_scale": [round(float(s), 5) for s in fit.scale],
+        "imu.gyro_bias_dps": [round(float(g), 3) for g in gyro],
+    }, confirm)
+
+
+def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibrated_ok: bool = False) -> bool:
+    """The IMU's roll and pitch on the base, with the drone standing level (the accelerometer
+    calibrated first: its bias would read as a tilt; uncalibrated_ok for an ideal IMU)."""
+    model = config.load(model_path)
+    cal = model.imu_calibration
+    if cal == config.ImuCalibration() and not uncalibrated_ok:
+        raise CalibrationError("the accelerometer is not calibrated (its bias would read as a tilt of up to "
+                               "3 deg): run `uavarm calibrate imu` first")
+    arm.stream(imu_every=1)
+    try:
+        w = _still_window(arm, model, ask, "Stand the drone level (a spirit level on the frame) with the "
+                                           "arm mounted. Press Enter.", seconds)
+    finally:
+        arm.stream(imu_every=0)
+    up = (w.accel_g - np.array(cal.accel_bias)) / np.array(cal.accel_scale)
+    if abs(np.linalg.norm(up) - 1.0) > 0.03:
+        raise CalibrationError(f"the calibrated accelerometer reads {np.linalg.norm(up):.3f} g at rest, not 1 g: "
+                               "run `uavarm calibrate imu` first")
+    roll, pitch = calibration.mounting_from_gravity(up)
+    yaw = model.imu_mounting_rpy_deg[2]
+    print(f"IMU on the base: roll {roll:+.2f} deg, pitch {pitch:+.2f} deg (yaw {yaw:+.2f} deg kept: "
+          "gravity does not show it)")
+    return model_edit.write(model_path, {"imu.mounting_rpy": [round(roll, 2), round(pitch, 2), yaw]}, confirm)
+
+
+def terminal_ask(text: str) -> None:
+    input(text + " ")
+
+
+def terminal_confirm(question: str) -> bool:
+    return input(question + " [y/N] ").strip().lower() in ("y", "yes")
+
+
+def command(args) -> int:
+    import sys
+    from .link import ArmLink, LinkError
+    path = Path(args.model) if args.model else config.DEFAULT_MODEL
+    confirm = (lambda q: True) if args.yes else terminal_confirm
+    try:
+        config.load(path)
+        with ArmLink(args.port) as arm:
+            arm.next_heartbeat()
+            run = {"imu": imu, "mounting": mounting}[args.what]
+            run(arm, path, terminal_ask, confirm, seconds=args.seconds)
+    except (LinkError, CalibrationError, config.ModelError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        print(f"{path}: left as it was", file=sys.stderr)
+        return 1
+    except (KeyboardInterrupt, EOFError):
+        print(f"\nstopped; {path} left as it was", file=sys.stderr)
+        return 1
+    return 0
