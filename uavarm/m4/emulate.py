@@ -11,6 +11,7 @@ from . import costs
 from .image import FLASH, FLASH_SIZE, RAM, RAM_SIZE, Image
 
 RETURN = 0x0FFF_0000            # the caller's return address: the run stops on reaching it
+PAINT = struct.pack("<I", 0x5AC3_3CA5)
 
 _ELEMENTS = {"float": "f", "double": "d", "int32": "i", "uint32": "I", "int16": "h", "uint16": "H",
              "int8": "b", "uint8": "B"}
@@ -102,13 +103,14 @@ def _return_value(uc, A, ret: str):
 
 
 def call(image: Image, func: str, args, ret: str, max_insns: int) -> Result:
-    from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_HOOK_MEM_WRITE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError
+    from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError
     from unicorn import arm_const as A
 
     if ret not in ("void", "float", "double", "int", "uint32"):
         raise ValueError(f"return type {ret!r}: one of void, float, double, int, uint32")
     uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
-    uc.ctl_set_cpu_model(A.UC_CPU_ARM_CORTEX_M4)      # FPU enabled at reset, FPSCR 0
+    uc.ctl_set_cpu_model(A.UC_CPU_ARM_CORTEX_M4)      # FPU (CP10, CP11) enabled at reset
+    uc.reg_write(A.UC_ARM_REG_FPSCR, 0)               # round to nearest, no flush to zero
     uc.mem_map(FLASH, FLASH_SIZE)
     uc.mem_map(RAM, RAM_SIZE)
     uc.mem_map(RETURN, 0x1000)
@@ -125,11 +127,14 @@ def call(image: Image, func: str, args, ret: str, max_insns: int) -> Result:
     uc.reg_write(A.UC_ARM_REG_SP, sp)
     uc.reg_write(A.UC_ARM_REG_LR, RETURN | 1)
 
-    trace, lowest = [], [sp]
+    # Stack painting: the lowest word below the stack pointer that no longer holds the paint
+    # is the deepest the call went. (A memory-write hook would be exact but changes what
+    # unicorn 2.1 executes.)
+    stack_floor = (free + 255) & ~255
+    uc.mem_write(stack_floor, PAINT * ((sp - stack_floor) // 4))
+    trace = []
     uc.hook_add(UC_HOOK_CODE, lambda _uc, addr, _size, _data: trace.append(addr),
                 begin=FLASH, end=FLASH + FLASH_SIZE - 1)
-    uc.hook_add(UC_HOOK_MEM_WRITE, lambda _uc, _access, addr, _size, _value, _data:
-                lowest.__setitem__(0, min(lowest[0], addr)), begin=free, end=sp - 1)
     try:
         uc.emu_start(image.functions[func].addr | 1, RETURN, count=max_insns)
     except UcError as e:
@@ -145,8 +150,10 @@ def call(image: Image, func: str, args, ret: str, max_insns: int) -> Result:
         name = image.function_at(addr)
         insns_by[name] += n
         cycles_by[name] += cycles[addr]
+    painted = bytes(uc.mem_read(stack_floor, sp - stack_floor))
+    deepest = next((i for i in range(0, len(painted), 4) if painted[i:i + 4] != PAINT), len(painted))
     arrays = [arg.unpack(bytes(uc.mem_read(at, len(arg.pack())))) if at is not None else None
               for arg, at in zip(args, arrays_at)]
     return Result(func, _return_value(uc, A, ret), arrays, sum(counts.values()), sum(cycles.values()),
                   dict(insns_by), dict(cycles_by), image.functions[func].size,
-                  sum(image.functions[f].size for f in insns_by if f in image.functions), sp - lowest[0])
+                  sum(image.functions[f].size for f in insns_by if f in image.functions), len(painted) - deepest)
