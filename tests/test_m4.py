@@ -87,8 +87,9 @@ SNIPPETS = {
         ite eq
         moveq r0, #1
         movne r0, #2""",
-    # a double argument arrives in d0 = s0:s1
+    # a double argument arrives in d0 = s0:s1; a fifth word argument on the stack
     "double_words": """vmov r0, r1, d0""",
+    "fifth_word": """ldr r0, [sp]""",
     # a load that fails its condition costs 1, not 2
     "it_load": """cmp r0, #0
         it eq
@@ -222,3 +223,8 @@ def test_a_double_argument_takes_a_d_register(image):
     low, high = struct.unpack("<II", struct.pack("<d", x))
     assert image.call("double_words", [m4.F64(x)], ret="uint32").ret == low == 1
     assert high == 0x3FF00000
+
+
+def test_a_fifth_word_argument_is_on_the_stack(image):
+    r = image.call("fifth_word", [1, 2, m4.Arr("float", 3), 4, m4.U32(0xDEADBEEF)], ret="uint32")
+    assert r.ret == 0xDEADBEEF and r.cycles == 2 + RETURN

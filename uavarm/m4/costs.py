@@ -82,22 +82,21 @@ _ALIASES = {"ip": "r12", "fp": "r11", "sl": "r10", "sb": "r9"}
 _REG = re.compile(r"\b(r1[0-5]|r\d|sp|lr|pc|ip|fp|sl|sb)\b")
 
 
-def split_mnemonic(mnemonic: str) -> tuple[str, str]:
-    """'vmovgt.f32' -> ('vmov', 'gt'), 'bne.n' -> ('b', 'ne'), 'lsls' -> ('lsl', ''),
-    'itte' -> ('it', '')."""
+def root_of(mnemonic: str) -> str:
+    """The instruction without width, type, flag-setting or condition suffixes:
+    'vmovgt.f32' -> 'vmov', 'bne.n' -> 'b', 'lsls' -> 'lsl', 'bics' -> 'bic', 'itte' -> 'it'."""
     head = mnemonic.lower().split(".")[0]
     if head in _KNOWN:
-        return head, ""
+        return head
     if re.fullmatch(r"it[te]{0,3}", head):
-        return "it", ""
-    if head.endswith("s") and head[:-1] in _KNOWN - _BRANCHES:      # flag-setting: 'bics'
-        return head[:-1], ""
-    cond = head[-2:] if head[-2:] in _CONDS else ""
-    body = head[:len(head) - len(cond)]
+        return "it"
+    if head.endswith("s") and head[:-1] in _KNOWN - _BRANCHES:
+        return head[:-1]
+    body = head[:-2] if head[-2:] in _CONDS else head
     for root in (body, body[:-1] if body.endswith("s") else None):  # 'bls', 'movseq'
         if root in _KNOWN:
-            return root, cond
-    return head, ""
+            return root
+    return head
 
 
 def _regs(text: str) -> frozenset[str]:
@@ -122,7 +121,7 @@ class Insn:
 
     def __init__(self, addr: int, size: int, mnemonic: str, operands: str):
         self.addr, self.size, self.mnemonic, self.operands = addr, size, mnemonic, operands
-        self.root, _cond = split_mnemonic(mnemonic)
+        self.root = root_of(mnemonic)
         ops = operands.split(",")
         first = _regs(ops[0]) if ops else frozenset()
         bracket = re.search(r"\[([^\]]*)\]", operands)

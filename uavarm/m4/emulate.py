@@ -76,12 +76,14 @@ def _place_arguments(uc, A, args, arrays_at: list, sp: int) -> int:
                 stacked += b"\0" * (len(stacked) % 8) + struct.pack("<II", lo, hi)
             else:
                 single[free:free + 2] = [lo, hi]
-        else:
-            word = addr if isinstance(arg, Arr) else (arg.value if isinstance(arg, U32) else int(arg))
+        elif isinstance(arg, (Arr, U32, int)):
+            word = addr if isinstance(arg, Arr) else (arg.value if isinstance(arg, U32) else arg)
             if len(core) < 4:
                 core.append(word & 0xFFFF_FFFF)
             else:
                 stacked += struct.pack("<I", word & 0xFFFF_FFFF)
+        else:
+            raise TypeError(f"argument {arg!r}: a float, an int, U32, F64 or Arr")
     for i, word in enumerate(core):
         uc.reg_write(getattr(A, f"UC_ARM_REG_R{i}"), word)
     for i, word in enumerate(single):
