@@ -137,8 +137,8 @@ def words(n=8):
 
 
 def run(image, name, r0=0):
-    """r0 as given, r1..r3 pointers to zeroed words."""
-    return image.call(name, [r0, words(), words(), words()], ret="int")
+    """r0 as given, r1..r3 pointers to zeroed words, a fifth argument 0 on the stack."""
+    return image.call(name, [r0, words(), words(), words(), 0], ret="int")
 
 
 @pytest.mark.parametrize("name, body_cycles, body_insns", [
