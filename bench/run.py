@@ -2,8 +2,9 @@
 side by side with the plain reference (bench/reference.c) in the same run.
 
 Counts come from uavarm/m4 (unicorn emulation, deterministic); cycles are its estimate
-from the Cortex-M4 manual's timings at zero flash wait states. Each row is the mean and the worst case over
-the same fixed set of inputs for both sides. Host timings are not figures of merit.
+from the Cortex-M4 manual's timings at zero flash wait states. Each row is the mean and
+the worst case over the same fixed set of inputs for both sides. Host timings are not
+figures of merit.
 """
 from __future__ import annotations
 
