@@ -113,8 +113,12 @@ def _load_segments(data: bytes) -> list[tuple[int, bytes, int]]:
 
 def build(sources, funcs, cflags=(), workdir: Path | None = None) -> Image:
     """Compile and link `sources` (C or .S) for the Cortex-M4F at -O2 (a later -O in cflags
-    wins) and keep `funcs` and whatever they reach."""
-    workdir = Path(workdir or tempfile.mkdtemp(prefix="uavarm-m4-"))
+    wins) and keep `funcs` and whatever they reach. The ELF stays in `workdir` if one is
+    given; otherwise it is built in a temporary folder, removed once decoded."""
+    if workdir is None:
+        with tempfile.TemporaryDirectory(prefix="uavarm-m4-") as tmp:
+            return build(sources, funcs, cflags, Path(tmp))
+    workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     script = workdir / "m4.ld"
     script.write_text(LINKER_SCRIPT)
