@@ -142,7 +142,7 @@ def whole_tick(m):
     print(f"\nWhole 100 Hz tick, mean over {N_TICKS} ticks of a board rocking +-20 deg. Firmware "
           "(bench/tick_bench.c): what a tick adds to the main loop's idle passes: the IMU burst, "
           "filters, attitude, level-to-base, the followed branch's IK, the move's swept check, servo units, the SYNC_WRITE, "
-          "the status READ and the parse of its 14-byte reply. Reference (bench/reference.c "
+          "the status READ and the parse of its 18-byte reply. Reference (bench/reference.c "
           "ref_tick): the same arithmetic written plainly with libm, no I/O.\n")
     print("| | insns | est. cycles | us at 96 MHz | stack bytes |")
     print("|---|---:|---:|---:|---:|")

@@ -32,6 +32,7 @@ static app_t app;
 static size_t take(const void *src, size_t len, size_t *pos, uint8_t *buf, size_t cap)
 {
     size_t n = len - *pos < cap ? len - *pos : cap;
+    if (n == 0) return 0;   /* nothing waiting: as the board's rings answer, at once */
     memcpy(buf, (const uint8_t *)src + *pos, n);
     *pos += n;
     return n;

@@ -436,6 +436,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "faults": messages.FAULTS,
         "states": messages.STATES,
         "refusals": messages.REFUSALS,
+        "reset_causes": messages.RESET_CAUSES,
         "types": messages.TYPES,
         "wire_types": messages.wire_types(),
     }

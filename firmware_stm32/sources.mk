@@ -37,6 +37,7 @@ BOARD_LOGIC_SOURCES = \
 # Written against the STM32CubeF4 HAL and USB device library.
 HAL_SOURCES = \
     Board/Src/board_clock.c \
+    Board/Src/board_guard.c \
     Board/Src/board_port.c \
     Core/Src/main.c \
     Core/Src/stm32f4xx_hal_msp.c \

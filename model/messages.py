@@ -59,12 +59,12 @@ MESSAGES = (
         ("q1", "f32"), ("q2", "f32"), ("q3", "f32"),
         ("link_frames_ok", "u16"), ("link_errors", "u16"), ("link_echoes", "u16"), ("servo_timeouts", "u16"),
         ("servo_resets", "u16"), ("ticks_late", "u16"), ("ticks_missed", "u16"),
-        ("bus_state", "u8"), ("reset_cause", "u8"), ("firmware", "u32"), ("model", "u32"),
+        ("bus_state", "u8"), ("reset_cause", "u8"), ("last_fault", "u8"), ("firmware", "u32"), ("model", "u32"),
         ("servo1_voltage", "u8"), ("servo1_temperature", "u8"), ("servo1_load", "u16"),
         ("servo2_voltage", "u8"), ("servo2_temperature", "u8"), ("servo2_load", "u16"),
         ("servo3_voltage", "u8"), ("servo3_temperature", "u8"), ("servo3_load", "u16"),
     ), "every 500 ms: sequence number and uptime, state, set position, joint angles (rad), fault flags, "
-       "counters, the bus and reset state, firmware and model identity, each servo's supply (0.1 V), "
+       "counters, the bus and reset state (with the exception that halted the firmware before it), firmware and model identity, each servo's supply (0.1 V), "
        "temperature (deg C) and load (AX-12A units, bit 10 = direction)"),
 )
 
@@ -78,6 +78,19 @@ REFUSALS = (
     ("servo_tracking", "engage while a servo does not follow its goal"),
     ("no_route", "engage or set_position with no clear route there"),
     ("not_finite", "set_position with a NaN or infinite coordinate"),
+)
+
+# heartbeat.reset_cause: why the chip last reset (RCC_CSR's flags, read once at start-up)
+RESET_CAUSES = (
+    ("unknown", "no reset flag was set (e.g. a debugger's reset)"),
+    ("power_on", "power-on or power-down reset"),
+    ("brown_out", "the MCU's supply fell below the brown-out threshold"),
+    ("watchdog", "the independent watchdog: the main loop stopped or stayed unhealthy, or a fault "
+                 "halted the firmware (heartbeat.last_fault says which)"),
+    ("window_watchdog", "the window watchdog"),
+    ("low_power", "low-power management reset"),
+    ("software", "a software reset (NVIC_SystemReset, e.g. after flashing)"),
+    ("pin", "the NRST pin (reset button)"),
 )
 
 # heartbeat.state: what the arm is doing, in order of a session

@@ -223,3 +223,22 @@ def test_link_goes_through_usb_cdc(board):
     lib.board_link_received(b"b0203", 5)
     buf = ffi.new("uint8_t[16]")
     assert port.link_read(port.ctx, buf, 16) == 5 and bytes(buf[0:5]) == b"b0203"
+
+
+def test_a_host_opening_the_port_gets_no_heartbeats_queued_before(board):
+    """DTR rising (the host opened the port) drops what queued while nobody read it; DTR held
+    or falling drops nothing."""
+    ffi, lib, port = board
+    lib.fake.cdc_answer = USBD_BUSY                          # nobody reads: frames queue
+    for frame in (b"b01AA", b"b01BB"):
+        assert port.link_write(port.ctx, frame, 5)
+    lib.board_link_line_state(True)                          # a process opens the port
+    lib.fake.cdc_answer = USBD_OK
+    assert port.link_write(port.ctx, b"b01CC", 5)
+    assert bytes(lib.fake.cdc_sent[0:lib.fake.cdc_sent_len]) == b"b01CC"
+    assert port.link_write(port.ctx, b"b01DD", 5)            # queued behind CC's transfer
+    lib.board_link_line_state(True)                          # DTR set again: the same reader
+    lib.board_link_line_state(False)                         # the port closes: nothing dropped
+    lib.board_link_transmitted()
+    lib.board_port_poll()
+    assert bytes(lib.fake.cdc_sent[0:lib.fake.cdc_sent_len]) == b"b01CCb01DD"

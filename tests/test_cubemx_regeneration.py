@@ -215,6 +215,11 @@ def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0):
     record["nvic_enabled"] = list(cube.nvic_enabled)
     lib.fake_cube_usb_strings()
     record["strings"] = [ffi.string(cube.string[i]).decode() for i in range(4)]
+    # the host's SET_CONTROL_LINE_STATE (USB CDC PSTN 6.3.12: wValue bit 0 DTR, bit 1 RTS)
+    lib.fake_cube_line_state(0x0001)
+    record["dtr_set"] = (cube.line_states, cube.dtr)
+    lib.fake_cube_line_state(0x0002)
+    record["rts_only"] = (cube.line_states, cube.dtr)
     sizes = {}
     for line in subprocess.run(["nm", "-S", "--defined-only", str(so)], capture_output=True, text=True,
                                check=True).stdout.splitlines():
@@ -263,6 +268,9 @@ def check_peripherals(record, sizes, model, hse_hz, bypass):
     assert r["usbd_started"] == 1
     assert r["strings"] == ["uavarm", "uavarm manipulator", "CDC Config", "CDC Interface"]
     assert sizes == {"UserRxBufferFS": 64, "UserTxBufferFS": 64}
+    assert r["dtr_set"] == (1, 1) and r["rts_only"] == (2, 0)
+    # the board's guard (reset cause, watchdog) after the peripherals; the clock security system on
+    assert r["guard_started"] == 1 and r["css_enabled"] == 1
 
 
 def test_committed_start_up_gives_the_model_and_board_numbers(tmp_path, model):

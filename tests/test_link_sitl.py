@@ -64,7 +64,7 @@ def test_silent_and_garbled_links_are_told_apart():
             with pytest.raises(LinkSilent, match="no heartbeat"):
                 arm.next_heartbeat()
             os.write(master, b"hello, this is not LLCP " * 4 + b"b05ZZ")
-            with pytest.raises(LinkGarbled, match="no valid heartbeat"):
+            with pytest.raises(LinkGarbled, match="no valid fresh heartbeat"):
                 arm.next_heartbeat()
     finally:
         os.close(master)
@@ -118,7 +118,7 @@ def test_command_line_against_the_sitl(sitl):
     run = lambda *a: subprocess.run([sys.executable, "-m", "uavarm.cli", "link", sitl.device, *a],
                                     capture_output=True, text=True, timeout=30)
     out = run("status")
-    assert out.returncode == 0 and "enabled 0" in out.stdout
+    assert out.returncode == 0 and "enabled 0" in out.stdout and "(reset: power_on)" in out.stdout
     out = run("enable")
     assert out.returncode == 0 and "enabled 1" in out.stdout
     out = run("goto", "500", "0", "0")

@@ -240,6 +240,7 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     arm = start_arm()
     status = arm.wait_status(lambda s: True, 2.0)
     assert status is not None and not status.enabled and not status.engaged and status.fault_names == []
+    assert status.reset_cause == "power_on" and status.last_fault == ""
 
     r = arm.call("engage", True)
     assert not r.success and "not enabled" in r.message

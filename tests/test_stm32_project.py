@@ -409,11 +409,12 @@ def test_servo_supply_is_off_from_reset_until_the_application_switches_it():
     assert "app_init(" in user2
     user3 = main_c[main_c.index("/* USER CODE BEGIN 3 */"):main_c.index("/* USER CODE END 3 */")]
     assert "app_poll(" in user3
-    # faults and Error_Handler cut the supply
+    # faults (board_fault: supply off, recorded; tests/test_board_guard.py) and Error_Handler cut the supply
     it_c = (FW / "Core" / "Src" / "stm32f4xx_it.c").read_text()
-    for handler in ("HardFault_Handler", "MemManage_Handler", "BusFault_Handler", "UsageFault_Handler"):
+    for handler in ("NMI_Handler", "HardFault_Handler", "MemManage_Handler", "BusFault_Handler",
+                    "UsageFault_Handler"):
         body = it_c[it_c.index(f"void {handler}(void)"):]
-        assert body.index("board_servo_power_off();") < body.index("while (1)"), handler
+        assert body.index("board_fault();") < body.index("while (1)"), handler
     err = main_c[main_c.index("void Error_Handler(void)"):]
     assert err.index("board_servo_power_off();") < err.index("while (1)")
 
@@ -490,9 +491,15 @@ STARTUP_STANDIN = """
     .cpu cortex-m4
     .thumb
     .section .isr_vector,"a",%progbits
+    .global g_pfnVectors
+g_pfnVectors:
     .word _estack
     .word Reset_Handler
     .text
+    .thumb_func
+    .global Default_Handler
+Default_Handler:
+    b .
     .thumb_func
     .global Reset_Handler
 Reset_Handler:

@@ -154,6 +154,7 @@ class SimBoard:
         self.app = self.ffi.new("app_t *")
         self._clock()
         self.lib.app_init(self.app, self.ffi.addressof(self.hp, "port"))
+        self.app.reset_cause = [name for name, _ in messages.RESET_CAUSES].index("power_on")   # as after power-up
 
     # ------------------------------------------------------------------ inputs
 

@@ -28,10 +28,12 @@ def demo(args) -> int:
 
 
 def _heartbeat_line(hb) -> str:
-    from .messages import REFUSALS, fault_names, state_name
+    from .messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, state_name
     q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
     refused = f" refused {REFUSALS[hb['refusal']][0]}" if 0 < hb["refusal"] < len(REFUSALS) else ""
-    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{refused}: "
+    halted = f" after {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
+    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{refused} "
+            f"(reset: {reset_cause_name(hb['reset_cause'])}{halted}): "
             f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
             f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "
             f"faults {fault_names(hb['faults'])} servo errors "

@@ -181,8 +181,9 @@ class ArmLink:
             if time.monotonic() > end:
                 if self.bytes_received > start_bytes:
                     raise LinkGarbled(f"{self.bytes_received - start_bytes} bytes in {timeout:.1f} s but no "
-                                      f"valid heartbeat (checksum errors {self.decoder.checksum_errors}, "
-                                      f"bad characters {self.decoder.hex_errors}): wrong baud or device?")
+                                      f"valid fresh heartbeat (checksum errors {self.decoder.checksum_errors}, "
+                                      f"bad characters {self.decoder.hex_errors}, older than a period "
+                                      f"{self.age.stale}): wrong baud or device?")
                 raise LinkSilent(f"no heartbeat for {timeout:.1f} s: is the board powered and the port right?")
             time.sleep(0.005)
 

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import struct
 
-from .model.messages import FAULTS, MESSAGES, REFUSALS, STATES, Message
+from .model.messages import FAULTS, MESSAGES, REFUSALS, RESET_CAUSES, STATES, Message
 
 BY_NAME = {m.name: m for m in MESSAGES}
 BY_ID = {m.id: m for m in MESSAGES}
@@ -52,3 +52,18 @@ def state_name(value: int) -> str:
 def refusal_reason(value: int) -> str:
     """What a heartbeat refusal value says (model/messages.py REFUSALS)."""
     return REFUSALS[value][1] if 0 <= value < len(REFUSALS) else f"unknown refusal {value}"
+
+
+def reset_cause_name(value: int) -> str:
+    """The name of a heartbeat reset_cause value (model/messages.py RESET_CAUSES)."""
+    return RESET_CAUSES[value][0] if 0 <= value < len(RESET_CAUSES) else f"unknown reset cause {value}"
+
+
+CORE_EXCEPTIONS = {2: "NMI", 3: "HardFault", 4: "MemManage", 5: "BusFault", 6: "UsageFault"}
+
+
+def fault_vector_name(number: int) -> str:
+    """A Cortex-M exception number as the handler's name: 3 "HardFault", 16 + n "IRQ n"."""
+    if number >= 16:
+        return f"IRQ {number - 16}"
+    return CORE_EXCEPTIONS.get(number, f"exception {number}")

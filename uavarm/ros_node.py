@@ -46,7 +46,7 @@ import time
 from pathlib import Path
 
 from .link import ArmLink, CommandRefused, LinkError, LinkGarbled, LinkSilent, PortNotFound
-from .messages import FAULTS, REFUSALS, fault_names
+from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
 
 PACKAGE = "uavarm_ros"
 ROOT = Path(__file__).resolve().parents[1]
@@ -373,7 +373,9 @@ class ArmNode:
         self._silent, self._last_hb_time = False, now
         if self.link.age.restarts > self._restarts:
             self._restarts = self.link.age.restarts
-            rospy.logwarn("arm: the board restarted (its uptime went back to %.1f s)", hb["uptime_ms"] / 1000.0)
+            rospy.logwarn("arm: the board restarted (its uptime went back to %.1f s; reset cause %s%s)",
+                          hb["uptime_ms"] / 1000.0, reset_cause_name(hb["reset_cause"]),
+                          f", after a {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else "")
         names = fault_names(hb["faults"])
         before = set() if self._last_hb is None else set(fault_names(self._last_hb["faults"]))
         for name in names:
@@ -386,6 +388,8 @@ class ArmNode:
         m.enabled, m.engaged, m.unreachable = bool(hb["enabled"]), bool(hb["engaged"]), bool(hb["unreachable"])
         m.seq, m.uptime, m.state = hb["seq"], hb["uptime_ms"] / 1000.0, hb["state"]
         m.refusal = REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else ""
+        m.reset_cause = reset_cause_name(hb["reset_cause"])
+        m.last_fault = fault_vector_name(hb["last_fault"]) if hb["last_fault"] else ""
         m.faults, m.fault_names = hb["faults"], names
         m.servo_errors = [hb["servo1_error"], hb["servo2_error"], hb["servo3_error"]]
         m.set_position = [hb["set_x"] / 1000.0, hb["set_y"] / 1000.0, hb["set_z"] / 1000.0]

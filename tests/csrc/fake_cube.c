@@ -6,10 +6,12 @@
 
 #include "main.h"
 #include "app.h"
+#include "board_guard.h"
 #include "board_port.h"
 #include "usbd_core.h"
 #include "usbd_cdc.h"
 #include "usbd_desc.h"
+#include "usbd_cdc_if.h"
 
 int firmware_main(void);            /* main.c's main(), renamed by the build */
 void SystemClock_Config(void);
@@ -33,6 +35,12 @@ void fake_cube_system_clock_config(void)
     memset(&cube, 0, sizeof cube);
     SystemClock_Config();
     cube.system_clock_config++;
+}
+
+void fake_cube_line_state(uint16_t w_value)
+{
+    USBD_SetupReqTypedef req = { .bmRequest = 0x21u, .bRequest = CDC_SET_CONTROL_LINE_STATE, .wValue = w_value };
+    (void)USBD_Interface_fops_FS.Control(CDC_SET_CONTROL_LINE_STATE, (uint8_t *)&req, 0u);
 }
 
 void fake_cube_usb_strings(void)
@@ -59,6 +67,11 @@ void board_servo_power_off(void) { }
 void board_link_connected(void) { }
 void board_link_received(const uint8_t *bytes, uint32_t n) { (void)bytes; (void)n; }
 void board_link_transmitted(void) { }
+void board_link_line_state(bool dtr) { cube.line_states++; cube.dtr = dtr; }
+board_reset_t board_guard_start(void) { cube.guard_started++; return (board_reset_t){ 0u, 0u }; }
+void board_watchdog_feed(void) { }
+void board_fault(void) { }
+bool app_healthy(const app_t *app) { (void)app; return true; }
 
 /* Error_Handler() ends in __disable_irq() and an endless loop: leave it here. */
 void __disable_irq(void)
@@ -98,6 +111,11 @@ HAL_StatusTypeDef HAL_RCC_ClockConfig(RCC_ClkInitTypeDef *c, uint32_t FLatency)
     cube.apb2_divider = c->APB2CLKDivider;
     cube.flash_latency = FLatency;
     return HAL_OK;
+}
+
+void HAL_RCC_EnableCSS(void)
+{
+    cube.css_enabled++;
 }
 
 /* ---- peripherals */

@@ -16,6 +16,11 @@ typedef struct {
     /* what HAL_RCC_OscConfig and HAL_RCC_ClockConfig received (HAL constant values) */
     uint32_t osc_configs, hse_state, pll_state, pll_source, pll_m, pll_n, pll_p, pll_q;
     uint32_t clock_configs, sysclk_source, ahb_divider, apb1_divider, apb2_divider, flash_latency;
+    uint32_t css_enabled;            /* HAL_RCC_EnableCSS calls */
+    uint32_t guard_started;          /* board_guard_start calls */
+    /* board_link_line_state: calls and the last DTR */
+    uint32_t line_states;
+    int dtr;
     /* USART1 */
     uint32_t halfduplex_inits, uart_inits, baud;
     /* I2C1 */
@@ -38,6 +43,9 @@ extern fake_cube_t cube;
 int fake_cube_boot(void);
 /* Calls CubeMX's SystemClock_Config alone (main() leaves it out). */
 void fake_cube_system_clock_config(void);
+/* The host's CDC SET_CONTROL_LINE_STATE request with this wValue (bit 0 DTR), as the USB
+ * CDC class hands it to usbd_cdc_if.c. */
+void fake_cube_line_state(uint16_t w_value);
 /* Asks the device descriptor table for its four strings (into cube.string). */
 void fake_cube_usb_strings(void);
 /* cffi:end */

@@ -99,7 +99,8 @@ typedef struct {
     uint8_t clock_stalls;          /* ticks in a row with the clock standing still */
     bool tick_due;                 /* app_watch found the tick interrupt late: app_poll ticks */
     uint8_t led_ticks;             /* ticks since the LEDs were last set */
-    uint8_t reset_cause;           /* set by the board after app_init: why the chip last reset */
+    uint8_t reset_cause;           /* set by the board after app_init: why the chip last reset (MSG_RESET_*) */
+    uint8_t last_fault;            /* set by the board: the exception that halted the firmware before, 0 none */
     uint32_t drone_attitudes;      /* drone_attitude frames received */
 } app_t;
 

@@ -465,6 +465,7 @@ static void send_heartbeat(app_t *app)
     hb.ticks_missed = (uint16_t)app->ticks_missed;
     hb.bus_state = (uint8_t)app->bus.state;
     hb.reset_cause = app->reset_cause;
+    hb.last_fault = app->last_fault;
     hb.firmware = APP_FIRMWARE_VERSION;
     hb.model = MODEL_SHA32;
     const sbus_servo_t *s = app->bus.servo;

@@ -53,4 +53,9 @@
  * aborted (a stuck transmitter must not keep the bus busy forever). */
 #define BOARD_SERVO_TX_MARGIN_US 1000u
 
+/* The independent watchdog resets the chip when the main loop has not been healthy (a tick
+ * run in the last two periods, the clock moving) for this long: 250 ms nominal, 170-470 ms
+ * over the LSI oscillator's 17-47 kHz (RM0383 17.3, datasheet 6.3.9). 1-4096 ms. */
+#define BOARD_WATCHDOG_MS 250u
+
 #endif /* BOARD_CONFIG_H */

@@ -40,6 +40,8 @@ uint8_t board_config_inputs(void);
 void board_link_connected(void);
 void board_link_received(const uint8_t *bytes, uint32_t n);
 void board_link_transmitted(void);
+/* CDC SET_CONTROL_LINE_STATE: DTR set when a host opens the port. */
+void board_link_line_state(bool dtr);
 
 /* Servo supply off at once, without the HAL state machine: for Error_Handler and faults. */
 void board_servo_power_off(void);

@@ -6,8 +6,9 @@
  * Transmit: the port's link_write queues a whole frame or refuses it (queue full, e.g. no
  * host reading); cdc_link_pump() hands queued bytes to the USB stack one transfer at a
  * time whenever the previous transfer has completed, from the main loop only, and retries
- * when the stack is busy. A fresh connection (CDC class init) drops what queued up while
- * nobody was listening. No HAL here: the transmit function is passed in.
+ * when the stack is busy. A fresh connection (CDC class init) or a host opening the port
+ * (DTR rising) drops what queued up while nobody was listening: a process that opens the
+ * port after an hour reads the board's state now, not an hour's old heartbeats. No HAL here: the transmit function is passed in.
  */
 #ifndef CDC_LINK_H
 #define CDC_LINK_H
@@ -44,6 +45,7 @@ typedef struct {
     uint16_t transfer_len;                     /* bytes in transfer not yet taken by the stack */
     volatile bool in_flight;                   /* set by the main loop, cleared by the USB interrupt */
     volatile bool fresh_connection;            /* set by the USB interrupt, handled by the pump */
+    bool dtr;                                  /* the host's DTR, as last set */
     cdc_link_transmit_fn transmit;
     void *transmit_ctx;
     uint32_t transfers;                        /* transfers the stack accepted */
@@ -56,6 +58,7 @@ void cdc_link_init(cdc_link_t *link, cdc_link_transmit_fn transmit, void *transm
 void cdc_link_on_receive(cdc_link_t *link, const uint8_t *bytes, size_t n);
 void cdc_link_on_transmit_done(cdc_link_t *link);
 void cdc_link_on_connect(cdc_link_t *link);
+void cdc_link_on_line_state(cdc_link_t *link, bool dtr);
 
 /* Main loop side. */
 size_t cdc_link_read(cdc_link_t *link, uint8_t *buf, size_t cap);

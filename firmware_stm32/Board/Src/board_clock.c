@@ -37,4 +37,7 @@ void board_clock_config(void)
     if (HAL_RCC_ClockConfig(&clk, FLASH_LATENCY_3) != HAL_OK) {
         Error_Handler();
     }
+    /* The clock security system: a crystal that stops switches the chip to its internal
+     * oscillator and raises the NMI, whose handler cuts the servo supply (RM0383 6.2.7). */
+    HAL_RCC_EnableCSS();
 }

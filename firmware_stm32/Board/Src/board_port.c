@@ -166,6 +166,11 @@ void board_link_transmitted(void)
     cdc_link_on_transmit_done(&board.link);
 }
 
+void board_link_line_state(bool dtr)
+{
+    cdc_link_on_line_state(&board.link, dtr);
+}
+
 /* ------------------------------------------------------------------ LEDs */
 
 static void led(void *ctx, uint8_t index, bool on)

@@ -8,6 +8,7 @@ void cdc_link_init(cdc_link_t *link, cdc_link_transmit_fn transmit, void *transm
     link->transfer_len = 0u;
     link->in_flight = false;
     link->fresh_connection = false;
+    link->dtr = false;
     link->transmit = transmit;
     link->transmit_ctx = transmit_ctx;
     link->transfers = 0u;
@@ -29,6 +30,12 @@ void cdc_link_on_connect(cdc_link_t *link)
     /* A transfer started before a bus reset never completes: forget it. */
     link->in_flight = false;
     link->fresh_connection = true;
+}
+
+void cdc_link_on_line_state(cdc_link_t *link, bool dtr)
+{
+    if (dtr && !link->dtr) link->fresh_connection = true;   /* a host opened the port */
+    link->dtr = dtr;
 }
 
 size_t cdc_link_read(cdc_link_t *link, uint8_t *buf, size_t cap)

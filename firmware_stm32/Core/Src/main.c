@@ -6,8 +6,10 @@
   *                   CubeMX writes everything outside the USER CODE sections from
   *                   manipulator.ioc; the portable application (App/) runs from the
   *                   USER CODE sections only: the board's clock, app_init() after the
-  *                   peripherals, app_poll() in the main loop, app_request_tick() from
-  *                   the TIM3 interrupt at the model's rate.
+  *                   peripherals, then the board's guard (reset cause, watchdog);
+  *                   app_poll() and app_watch() in the main loop, which feeds the
+  *                   watchdog only while app_healthy(); app_request_tick() from the
+  *                   TIM3 interrupt at the model's rate.
   ******************************************************************************
   */
 /* USER CODE END Header */
@@ -19,6 +21,7 @@
 /* USER CODE BEGIN Includes */
 #include "app.h"
 #include "board_clock.h"
+#include "board_guard.h"
 #include "board_port.h"
 #include "model_params.h"
 /* USER CODE END Includes */
@@ -106,6 +109,9 @@ int main(void)
   MX_USB_DEVICE_Init();
   /* USER CODE BEGIN 2 */
   app_init(&app, board_port_start());
+  const board_reset_t reset = board_guard_start();
+  app.reset_cause = reset.cause;
+  app.last_fault = reset.fault;
   if (HAL_TIM_Base_Start_IT(&htim3) != HAL_OK)
   {
     Error_Handler();
@@ -121,6 +127,10 @@ int main(void)
     /* USER CODE BEGIN 3 */
     app_poll(&app);
     app_watch(&app);
+    if (app_healthy(&app))
+    {
+      board_watchdog_feed();
+    }
     board_port_poll();
   }
   /* USER CODE END 3 */

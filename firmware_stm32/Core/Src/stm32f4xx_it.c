@@ -12,7 +12,7 @@
 #include "stm32f4xx_it.h"
 /* Private includes ----------------------------------------------------------*/
 /* USER CODE BEGIN Includes */
-#include "board_port.h"
+#include "board_guard.h"
 /* USER CODE END Includes */
 
 /* Private typedef -----------------------------------------------------------*/
@@ -43,7 +43,9 @@
 /* Private user code ---------------------------------------------------------*/
 /* USER CODE BEGIN 0 */
 /* A fault stops the firmware: the servo supply goes off first, so the arm goes limp
- * instead of holding whatever was last commanded without supervision. */
+ * instead of holding whatever was last commanded without supervision; the exception is
+ * recorded for the heartbeat after the watchdog's reset (board_guard.h). The NMI also
+ * comes from the clock security system when the crystal fails. */
 /* USER CODE END 0 */
 
 /* External variables --------------------------------------------------------*/
@@ -63,7 +65,7 @@ extern UART_HandleTypeDef huart1;
 void NMI_Handler(void)
 {
   /* USER CODE BEGIN NonMaskableInt_IRQn 0 */
-  board_servo_power_off();
+  board_fault();
   /* USER CODE END NonMaskableInt_IRQn 0 */
   /* USER CODE BEGIN NonMaskableInt_IRQn 1 */
   while (1)
@@ -78,7 +80,7 @@ void NMI_Handler(void)
 void HardFault_Handler(void)
 {
   /* USER CODE BEGIN HardFault_IRQn 0 */
-  board_servo_power_off();
+  board_fault();
   /* USER CODE END HardFault_IRQn 0 */
   while (1)
   {
@@ -93,7 +95,7 @@ void HardFault_Handler(void)
 void MemManage_Handler(void)
 {
   /* USER CODE BEGIN MemoryManagement_IRQn 0 */
-  board_servo_power_off();
+  board_fault();
   /* USER CODE END MemoryManagement_IRQn 0 */
   while (1)
   {
@@ -108,7 +110,7 @@ void MemManage_Handler(void)
 void BusFault_Handler(void)
 {
   /* USER CODE BEGIN BusFault_IRQn 0 */
-  board_servo_power_off();
+  board_fault();
   /* USER CODE END BusFault_IRQn 0 */
   while (1)
   {
@@ -123,7 +125,7 @@ void BusFault_Handler(void)
 void UsageFault_Handler(void)
 {
   /* USER CODE BEGIN UsageFault_IRQn 0 */
-  board_servo_power_off();
+  board_fault();
   /* USER CODE END UsageFault_IRQn 0 */
   while (1)
   {

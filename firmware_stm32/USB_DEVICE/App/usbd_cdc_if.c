@@ -115,6 +115,15 @@ static int8_t CDC_Control_FS(uint8_t cmd, uint8_t* pbuf, uint16_t length)
       }
     break;
 
+    case CDC_SET_CONTROL_LINE_STATE:
+    {
+      /* The class passes the setup request itself: wValue bit 0 is DTR, which a host sets
+       * when it opens the port (USB CDC PSTN 6.3.12). */
+      const USBD_SetupReqTypedef *req = (const USBD_SetupReqTypedef *)(const void *)pbuf;
+      board_link_line_state((req->wValue & 1U) != 0U);
+    }
+    break;
+
     default:
     break;
   }

@@ -54,8 +54,47 @@ typedef struct {
 #define USB_OTG_FS ((USB_OTG_GlobalTypeDef *)0x50000000UL)
 #define UID_BASE 0x1FFF7A10UL
 
-/* CMSIS core (cmsis_gcc.h defines these as inline "cpsid i" / "cpsie i") */
+/* CMSIS core (cmsis_gcc.h defines these as inline "cpsid i" / "cpsie i" / "dsb") */
 void __disable_irq(void);
 void __enable_irq(void);
+void __DSB(void);
+
+/* The reset and clock controller, the independent watchdog and the Cortex-M4 system control
+ * block (only its first registers), for the board's supervision (Board/Src/board_guard.c).
+ * On the chip they sit at RCC_BASE, IWDG_BASE and SCB_BASE; here they are objects, which the
+ * host test double defines. */
+typedef struct {
+    __IO uint32_t CR, PLLCFGR, CFGR, CIR, AHB1RSTR, AHB2RSTR, RESERVED0[2], APB1RSTR, APB2RSTR,
+                  RESERVED1[2], AHB1ENR, AHB2ENR, RESERVED2[2], APB1ENR, APB2ENR, RESERVED3[2],
+                  AHB1LPENR, AHB2LPENR, RESERVED4[2], APB1LPENR, APB2LPENR, RESERVED5[2], BDCR, CSR,
+                  RESERVED6[2], SSCGR, PLLI2SCFGR, RESERVED7, DCKCFGR;
+} RCC_TypeDef;
+
+typedef struct {
+    __IO uint32_t KR, PR, RLR, SR;
+} IWDG_TypeDef;
+
+typedef struct {
+    __I uint32_t CPUID;
+    __IO uint32_t ICSR, VTOR, AIRCR, SCR, CCR;
+} SCB_Type;
+
+extern RCC_TypeDef ci_rcc;
+extern IWDG_TypeDef ci_iwdg;
+extern SCB_Type ci_scb;
+#define RCC (&ci_rcc)
+#define IWDG (&ci_iwdg)
+#define SCB (&ci_scb)
+
+/* RCC_CSR reset flags (RM0383 6.3.21) and SCB_ICSR's active exception (ARMv7-M B3.2.4) */
+#define RCC_CSR_RMVF (1UL << 24)
+#define RCC_CSR_BORRSTF (1UL << 25)
+#define RCC_CSR_PINRSTF (1UL << 26)
+#define RCC_CSR_PORRSTF (1UL << 27)
+#define RCC_CSR_SFTRSTF (1UL << 28)
+#define RCC_CSR_IWDGRSTF (1UL << 29)
+#define RCC_CSR_WWDGRSTF (1UL << 30)
+#define RCC_CSR_LPWRRSTF (1UL << 31)
+#define SCB_ICSR_VECTACTIVE_Msk 0x1FFUL
 
 #endif

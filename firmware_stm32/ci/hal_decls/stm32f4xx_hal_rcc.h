@@ -51,6 +51,7 @@ typedef struct {
 
 HAL_StatusTypeDef HAL_RCC_OscConfig(RCC_OscInitTypeDef *RCC_OscInitStruct);
 HAL_StatusTypeDef HAL_RCC_ClockConfig(RCC_ClkInitTypeDef *RCC_ClkInitStruct, uint32_t FLatency);
+void HAL_RCC_EnableCSS(void);
 
 /* In the HAL these are register-write macros; here they only take their argument. */
 #define __HAL_RCC_PWR_CLK_ENABLE() ((void)0)

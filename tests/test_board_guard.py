@@ -1,0 +1,112 @@
+"""The board's guard (firmware_stm32/Board/Src/board_guard.c) on the host, over test doubles of
+the HAL (tests/csrc/fake_hal.c) and of the system registers and the startup file's vector
+table (tests/csrc/fake_guard.c).
+
+Oracles: RM0383 (RCC_CSR reset flags 6.3.21; a power-on reset also sets BORRSTF and PINRSTF,
+every internal reset PINRSTF; IWDG keys 0xCCCC start, 0x5555 unlock, 0xAAAA reload, timeout
+= 4 * 2^PR * (RLR + 1) / f_LSI, 17.3), ARMv7-M (ICSR.VECTACTIVE is the active exception
+number; VTOR needs the table's size rounded up to a power of two as alignment), the pin map
+(servo supply on PA8, high = on) and the heartbeat's reset cause names.
+"""
+import pytest
+
+from conftest import ROOT
+from uavarm import cbuild, firmware
+from uavarm.messages import RESET_CAUSES, fault_vector_name
+
+FW = firmware.FIRMWARE
+CSRC = ROOT / "tests" / "csrc"
+CAUSE = {name: k for k, (name, _) in enumerate(RESET_CAUSES)}
+BORRST, PINRST, PORRST, SFTRST, IWDGRST, WWDGRST, LPWRRST = (1 << b for b in range(25, 32))
+RMVF = 1 << 24
+SERVO_PWR = (0, 8)                       # PA8
+LSI_HZ = 32_000                          # nominal; 17-47 kHz
+
+
+@pytest.fixture(scope="module")
+def built():
+    lists = firmware.source_lists()
+    sources = [FW / "Board" / "Src" / "board_guard.c", FW / "Board" / "Src" / "board_port.c",
+               CSRC / "fake_hal.c", CSRC / "fake_guard.c"] + [FW / p for p in lists["BOARD_LOGIC_SOURCES"]]
+    includes = [FW / "ci" / "hal_decls"] + [FW / d for d in lists["FIRMWARE_INCLUDES"]] + [CSRC]
+    headers = [FW / "App" / "Inc" / "port.h", FW / "Board" / "Inc" / "board_port.h",
+               FW / "Board" / "Inc" / "board_guard.h", CSRC / "fake_hal.h", CSRC / "fake_guard.h"]
+    return cbuild.load("board_guard", sources, headers, include_dirs=includes,
+                       extra_flags=["-pthread", "-DBOARD_HALT=fake_halt"])
+
+
+@pytest.fixture
+def guard(built):
+    ffi, lib = built
+    lib.fake_reset()
+    port = lib.board_port_start()
+    # as the firmware's: its own handlers (reset, the five faults, SVC, DebugMon, PendSV, SysTick,
+    # TIM3, USART1, OTG_FS), the reserved entries 0, every other interrupt Default_Handler
+    for i in range(lib.FAKE_VECTORS):
+        lib.g_pfnVectors[i] = lib.Default_Handler
+    for used in (1, 2, 3, 4, 5, 6, 11, 12, 14, 15, 16 + 29, 16 + 37, 16 + 67):
+        lib.g_pfnVectors[used] = lib.fake_used_handler
+    for reserved in (0, 7, 8, 9, 10, 13):
+        lib.g_pfnVectors[reserved] = ffi.NULL
+    return ffi, lib, port
+
+
+def start(lib, csr):
+    lib.fake_guard_set(b"CSR", csr)
+    reset = lib.board_guard_start()
+    assert lib.fake_guard_get(b"CSR") & RMVF, "the flags are cleared for the next reset"
+    return reset.cause, reset.fault
+
+
+@pytest.mark.parametrize("flags, cause", [
+    (PORRST | BORRST | PINRST, "power_on"), (BORRST | PINRST, "brown_out"), (IWDGRST | PINRST, "watchdog"),
+    (WWDGRST | PINRST, "window_watchdog"), (LPWRRST | PINRST, "low_power"), (SFTRST | PINRST, "software"),
+    (PINRST, "pin"), (0, "unknown")])
+def test_the_reset_cause_is_the_most_specific_flag(guard, flags, cause):
+    assert start(guard[1], flags) == (CAUSE[cause], 0)
+
+
+def test_the_watchdog_runs_250_ms_and_is_fed_by_the_reload_key(guard):
+    lib = guard[1]
+    start(lib, PINRST)
+    timeout = 4 * 2 ** lib.fake_guard_get(b"PR") * (lib.fake_guard_get(b"RLR") + 1) / LSI_HZ
+    assert timeout == pytest.approx(0.250) and lib.fake_guard_get(b"KR") == 0xAAAA
+    lib.fake_guard_set(b"KR", 0)
+    lib.board_watchdog_feed()
+    assert lib.fake_guard_get(b"KR") == 0xAAAA
+
+
+def test_every_unused_interrupt_cuts_the_servo_supply_and_is_recorded_over_the_reset(guard):
+    ffi, lib, port = guard
+    dsbs = lib.fake_dsbs
+    start(lib, PORRST | BORRST | PINRST)
+    vtor = lib.fake_guard_get(b"VTOR")
+    table = int(ffi.cast("uintptr_t", lib.board_ram_vectors))
+    assert vtor == table & 0xFFFFFFFF and table % 512 == 0 and lib.fake_dsbs == dsbs + 1
+    unused = [n for n in range(lib.FAKE_VECTORS) if lib.g_pfnVectors[n] == lib.Default_Handler]
+    assert len(unused) == 102 - 19
+    assert all(lib.board_ram_vectors[n] == lib.g_pfnVectors[n] for n in range(102) if n not in unused)
+    for n in unused:
+        port.servo_power(port.ctx, True)
+        assert lib.fake.odr[0] >> 8 & 1
+        halts = lib.fake_halts
+        lib.fake_guard_dispatch(n)
+        assert lib.board_ram_vectors[n] != lib.Default_Handler
+        assert lib.fake_halts == halts + 1 and not lib.fake.odr[0] >> 8 & 1, fault_vector_name(n)
+        assert start(lib, IWDGRST | PINRST) == (CAUSE["watchdog"], n)   # the watchdog's reset
+        assert start(lib, PINRST) == (CAUSE["pin"], 0)                   # reported once
+
+
+def test_a_fault_handler_records_its_exception_unless_power_was_lost(guard):
+    ffi, lib, port = guard
+    start(lib, PINRST)
+    port.servo_power(port.ctx, True)
+    assert lib.fake.odr[0] >> 8 & 1
+    halts = lib.fake_halts
+    lib.fake_guard_set(b"ICSR", 3)              # HardFault active
+    lib.board_fault()
+    assert not lib.fake.odr[0] >> 8 & 1 and lib.fake_halts == halts + 1
+    assert fault_vector_name(start(lib, IWDGRST | PINRST)[1]) == "HardFault"
+    lib.fake_guard_set(b"ICSR", 2)              # the NMI (clock security system)
+    lib.board_fault()
+    assert start(lib, PORRST | BORRST | PINRST) == (CAUSE["power_on"], 0)   # RAM lost: no record
