@@ -1,9 +1,10 @@
 """`make bench`: Cortex-M4 instruction counts and estimated cycles of the generated code,
 side by side with the plain reference (bench/reference.c) in the same run.
 
-Counts come from ../shared/tools/m4count.py (unicorn emulation, deterministic); cycles
-are its estimate at zero flash wait states. Each row is the mean and the worst case over
-the same fixed set of inputs for both sides. Host timings are not figures of merit.
+Counts come from uavarm/m4 (unicorn emulation, deterministic); cycles are its estimate
+from the Cortex-M4 manual's timings at zero flash wait states. Each row is the mean and
+the worst case over the same fixed set of inputs for both sides. Host timings are not
+figures of merit.
 """
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uavarm import cbuild, firmware, generated, target
+from uavarm import cbuild, firmware, generated, m4, target
 from uavarm.board import SimBoard
 from uavarm.model import config
 
@@ -40,7 +41,6 @@ def inputs(m):
 
 
 def measure(build, func, arg_sets, ret):
-    m4 = target.m4count()
     results = [build.call(func, [m4.Arr(*a) if isinstance(a, tuple) else a for a in args], ret=ret)
                for args in arg_sets]
     cycles = [r.cycles for r in results]
@@ -51,7 +51,6 @@ def measure(build, func, arg_sets, ret):
 
 def main() -> int:
     m = config.load()
-    m4 = target.m4count()
     gen_dir = generated.GENERATED
     gen = m4.build([str(s) for s in generated.sources()],
                    ["kin_fk_ee", "kin_ik", "kin_ik_nearest", "kin_ik_branch", "filt_accel_step", "filt_gyro_step"],
@@ -83,7 +82,7 @@ def main() -> int:
          measure(ref, "ref_biquad_step", [[("float", 4), x] for x in samples], "float")),
     ]
 
-    print(f"Cortex-M4F (m4count, -O2, FPv4-SP), mean / worst over {N_INPUTS} inputs; "
+    print(f"Cortex-M4F (uavarm.m4, -O2, FPv4-SP), mean / worst over {N_INPUTS} inputs; "
           "est. cycles at 0 wait states\n")
     print("| function | generated insns | generated cycles (worst) | bytes | "
           "reference insns | reference cycles (worst) | bytes | cycles ratio |")
@@ -115,8 +114,8 @@ def tilting_imu(m, n=N_TICKS):
     return raw
 
 
-def tick_bench_build(m4):
-    """bench/tick_bench.c with every application and generated source, for m4count."""
+def tick_bench_build():
+    """bench/tick_bench.c with every application and generated source, for the M4 counter."""
     sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
     incs = [f"-I{d}" for d in (generated.GENERATED, firmware.APP / "Inc")]
     return m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
@@ -124,8 +123,7 @@ def tick_bench_build(m4):
 
 def whole_tick(m):
     """The firmware's whole tick (bench/tick_bench.c) against the plain reference tick."""
-    m4 = target.m4count()
-    gen = tick_bench_build(m4)
+    gen = tick_bench_build()
     ref = m4.build([str(BENCH / "reference.c")], ["ref_run"], cflags=target.M4_CFLAGS + target.reference_defines(m))
     raw = tilting_imu(m, N_TICKS + 1)   # the firmware's warm-up tick on the first sample, then N_TICKS
     idle = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(0)], ret="int")

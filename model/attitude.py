@@ -1,6 +1,6 @@
 """Attitude of the arm's base from the IMU, and the target turned into the tilted base frame.
 
-Frames (SPEC.md): the base frame B has z up and turns with the drone; the level frame W is
+Frames: the base frame B has z up and turns with the drone; the level frame W is
 gravity-aligned and follows the drone's heading, so B = W rotated by pitch about y after
 roll about x (the Z-Y-X Euler convention without yaw):
 

@@ -1,4 +1,4 @@
-"""Collision predicates (SPEC.md), written once for joint-space checks and for the IK.
+"""Collision predicates of the arm, written once for joint-space checks and for the IK.
 
 A pose is described by a `Geometry`: cos/sin of joint 1, and the horizontal distance from
 the base axis (rho) and height (z) of joint 3 and of the end effector. Some quantities may

@@ -19,7 +19,7 @@ JOINTS = ("theta1", "theta2", "theta3")
 ACCEL_RANGES_G = {2: 0, 4: 1, 8: 2, 16: 3}             # AFS_SEL
 GYRO_RANGES_DPS = {250: 0, 500: 1, 1000: 2, 2000: 3}   # FS_SEL
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
-RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX12_FACTS.md)
+RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX-12A e-manual)
 SPEED_RPM_MAX = 1023 * RPM_PER_SPEED_UNIT        # AX-12A Moving Speed register limit
 # Every length of the model (mm) is at most 10 m: the generated code is float32, and the
 # code generator's exact SymPy checks take minutes on lengths like 1e300. A link is 0 or at

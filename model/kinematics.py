@@ -1,6 +1,6 @@
 """Kinematics of the RRR arm, written once in SymPy.
 
-Forward kinematics is the Denavit-Hartenberg chain of SPEC.md. The closed-form inverse
+Forward kinematics is the arm's Denavit-Hartenberg chain. The closed-form inverse
 kinematics uses the same geometry seen in the arm's vertical plane:
 
   * joint 1 turns that plane; in it, a point sits at signed horizontal distance `u`

@@ -1,7 +1,7 @@
 """Independent references for the tests: plain geometry, not the SymPy model or its C.
 
 The arm as a person would describe it: joint 1 turns a vertical plane about the base
-axis (its horizontal direction is (cos q1, -sin q1), as in the DH table of SPEC.md); in
+axis (its horizontal direction is (cos q1, -sin q1), as in the arm's DH table); in
 that plane the upper arm hangs from the shoulder, L1 below the base origin, at angle q2
 from straight down, and the forearm at q2 + q3.
 """

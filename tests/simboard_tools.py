@@ -3,9 +3,9 @@ test_app.py), which reach it only through uavarm.board.SimBoard: LLCP bytes in, 
 bytes out, simulated servos, heartbeat frames back.
 
 Every oracle here is independent of the C under test:
-- what goes on the servo bus: Protocol 1.0 framing as reference/AX12_FACTS.md states it
+- what goes on the servo bus: Protocol 1.0 framing as the AX-12A e-manual states it
   (`split_packets`), and the official DynamixelSDK's packet builders (`sdk_rebuild`);
-- units <-> joint angles and speeds: the AX-12A's written facts (AX12_FACTS.md: 1023
+- units <-> joint angles and speeds: the AX-12A's written facts (the e-manual: 1023
   position units over 300 deg, 0.111 rpm per Moving Speed unit) with the model file's
   zero and direction of each servo;
 - joint limits and collisions: tests/oracles.py's plain geometry (`pose_ok`).
@@ -27,7 +27,7 @@ from uavarm.model import config
 MODEL = config.load()
 US = 1_000_000
 
-# Protocol 1.0 (AX12_FACTS.md "Instructions")
+# Protocol 1.0 (the e-manual's "Instructions")
 INST_READ = 0x02
 INST_WRITE = 0x03
 INST_SYNC_WRITE = 0x83
@@ -38,8 +38,8 @@ FAULT = {name: 1 << i for i, (name, _) in enumerate(messages.FAULTS)}
 
 IDS = [s.id for s in MODEL.servos]
 TICK = 1.0 / MODEL.sample_rate
-UNIT_RAD = math.radians(300.0) / 1023          # one position unit (AX12_FACTS.md)
-RPM_PER_SPEED_UNIT = 0.111                     # Moving Speed, joint mode (AX12_FACTS.md)
+UNIT_RAD = math.radians(300.0) / 1023          # one position unit (AX-12A e-manual)
+RPM_PER_SPEED_UNIT = 0.111                     # Moving Speed, joint mode (AX-12A e-manual)
 _ZERO = np.array([s.zero for s in MODEL.servos], dtype=float)
 _DIRECTION = np.array([s.direction for s in MODEL.servos], dtype=float)
 
@@ -68,7 +68,7 @@ class Packet:
 
 
 def split_packets(data: bytes) -> list[bytes]:
-    """Cuts a stream of instruction packets into packets, AX12_FACTS.md "Protocol 1.0
+    """Cuts a stream of instruction packets into packets, the e-manual's "Protocol 1.0
     packets": FF FF ID LEN INST P1..PN CHK with LEN = N + 2 and CHK = ~(ID + LEN + INST +
     P1 + ... + PN) & 0xFF. Every byte must belong to a well-formed packet."""
     out, i = [], 0
@@ -125,7 +125,7 @@ def sdk_rebuild(pkt: bytes) -> bytes:
 
 
 def sync_entries(pkt: bytes) -> tuple[int, int, dict[int, bytes]]:
-    """(start address, data length, {id: data}) of a SYNC_WRITE (AX12_FACTS.md)."""
+    """(start address, data length, {id: data}) of a SYNC_WRITE (AX-12A e-manual)."""
     p = pkt[5:-1]
     addr, size, entries = p[0], p[1], p[2:]
     assert size > 0 and len(entries) % (size + 1) == 0

@@ -4,7 +4,7 @@ simulated AX-12A shafts moving, heartbeat frames back. Simulated time only.
 
 Oracles, all independent of the C under test: the model's servo map (model/servo.py) for
 units <-> angles and speeds, tests/oracles.py's plain geometry for forward kinematics,
-joint limits and collisions, scipy's Rotation for the level frame, SPEC.md and the model
+joint limits and collisions, scipy's Rotation for the level frame, the arm's specification and the model
 file for the behaviour and its timing.
 """
 from __future__ import annotations
@@ -34,7 +34,7 @@ SILENCE = MODEL.link_silence_timeout
 FK_TOL_MM = 1.0                       # half a unit (0.15 deg) per joint at ~140 mm reach
 STAB_TOL_MM = 1.5
 STAB_TARGET = np.array([45.0, -10.0, -115.0])   # reachable at every tilt of the test with the mount offset
-UNITS_PER_S_PER_SPEED_UNIT = 0.111 * 6 * 1023 / 300   # AX12_FACTS: 0.111 rpm per unit
+UNITS_PER_S_PER_SPEED_UNIT = 0.111 * 6 * 1023 / 300   # AX-12A e-manual: 0.111 rpm per unit
 
 
 def set_position(board, p):

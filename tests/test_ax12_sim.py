@@ -1,6 +1,6 @@
 """The AX-12A bus simulator, driven by the official DynamixelSDK and by raw e-manual packets.
 
-Every expected value below comes from reference/AX12_FACTS.md (cited by section), or from
+Every expected value below comes from the AX-12A's written facts (e-manual, cited by section), or from
 a choice the simulator's docstring states where the documentation is silent (marked
 "choice"). The SDK talks to the simulated bus through `SdkPort`.
 """

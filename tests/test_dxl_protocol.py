@@ -5,7 +5,7 @@ Oracles:
   in-memory port that records what it writes: every instruction packet the C builds must
   equal the SDK's byte for byte, and the SDK's rxPacket must accept every status packet
   the C parser accepts;
-- the e-manual's worked examples (reference/AX12_FACTS.md);
+- the AX-12A e-manual's worked examples;
 - `status()` below, the status packet written out from the facts file's checksum formula.
 """
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """The generated attitude estimator (estimator.c) against independent oracles.
 
 Oracles: scipy's rotations for the frames (R_WB = Ry(pitch) Rx(roll), IMU mounting
-R_mount = Rz(yaw) Ry(pitch) Rx(roll), v_base = R_mount v_imu; SPEC.md and model/attitude.py),
+R_mount = Rz(yaw) Ry(pitch) Rx(roll), v_base = R_mount v_imu; model/attitude.py),
 body rates taken from scipy by differencing rotations (not from the Euler kinematics under
-test), a float64 complementary filter written from the formula of SPEC.md erratum 1
+test), a float64 complementary filter written from the corrected formula (erratum 1)
 (angle_k = w (angle_{k-1} + rate dt) + (1 - w) angle_acc), the filter's closed-form behaviour,
 and the SymPy model evaluated at 30 digits.
 
@@ -184,7 +184,7 @@ def test_level_to_base_matches_scipy(gen):
 # --- complementary filter ------------------------------------------------------------------
 
 def reference_step(b, state, acc, gyro):
-    """SPEC.md erratum 1 in float64: angle_k = w (angle + rate dt) + (1 - w) angle_acc, with
+    """The corrected complementary filter (erratum 1) in float64: angle_k = w (angle + rate dt) + (1 - w) angle_acc, with
     roll/pitch of the measured "up" and the Z-Y-X Euler rates of the body rates; also returns
     the tolerance of one float32 step (STEP_TOL_EPS times the magnitudes of the terms)."""
     roll, pitch = state

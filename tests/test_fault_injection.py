@@ -8,7 +8,7 @@ Oracles, independent of the C under test: the AX-12A e-manual's error byte (bit 
 voltage, 1 angle limit, 2 overheating, 3 range, 4 checksum, 5 overload, 6 instruction) and
 Protocol 1.0 status framing; the MPU-6050 register map (INT_STATUS DATA_RDY_INT, int16
 full scale); the LLCP format through the Python decoder (uavarm.llcp) fed the same bytes;
-plain geometry (tests/oracles.py) for poses; SPEC.md for the command semantics.
+plain geometry (tests/oracles.py) for poses; the arm's specification for the command semantics.
 """
 from __future__ import annotations
 
@@ -581,7 +581,7 @@ DELAYS = [0.0, 0.05, 0.25]   # right away, during the servos' boot, after config
 
 
 def expected(state, cmd, servos_run):
-    """SPEC.md's states: (enabled, engaged) after a command. enable 1 when enabled changes
+    """The specified states: (enabled, engaged) after a command. enable 1 when enabled changes
     nothing; engage 1 is refused unless enabled with its servos configured and the IMU
     settled (`servos_run`: simboard_tools.ready)."""
     enabled, engaged = state
@@ -596,7 +596,7 @@ def expected(state, cmd, servos_run):
 @pytest.mark.parametrize("delay", DELAYS)
 def test_every_order_of_enable_engage_disable(delay):
     """Every sequence of three of enable 1/0, engage 1/0 (64), `delay` apart, then 0.4 s:
-    the state follows SPEC.md's table, power is off within a tick of each enable 0, and the
+    the state follows the specified table, power is off within a tick of each enable 0, and the
     invariants hold throughout (commands safe, never during boot, never while off)."""
     for seq in itertools.product(COMMANDS, repeat=3):
         board = make_board()

@@ -26,7 +26,7 @@ from uavarm.board import Rocking, SimBoard
 TARGET = (70.0, -20.0, -95.0)
 REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
 STATE = {name: k for k, (name, _) in enumerate(messages.STATES)}
-TORQUE_ENABLE = 24                # AX12_FACTS.md control table
+TORQUE_ENABLE = 24                # AX-12A e-manual control table
 
 
 def set_position(board, p):

@@ -36,7 +36,7 @@ def test_fk_matches_sympy_at_30_digits(model, gen):
 
 
 def test_dh_chain_is_the_described_arm(model):
-    """The DH table of SPEC.md and the plain geometry of oracles.py describe one arm."""
+    """The arm's DH table and the plain geometry of oracles.py describe one arm."""
     f = sp.lambdify(kinematics.JOINT_SYMBOLS, list(kinematics.fk_points(model)[1]) +
                     list(kinematics.fk_points(model)[0]), modules="numpy")
     rng = np.random.default_rng(2)

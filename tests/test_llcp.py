@@ -1,7 +1,7 @@
 """LLCP framing: the firmware's C and the drone-side Python codec against the wire format.
 
 The oracle is `ref_frame` below, written from the format as MRS's llcp_prepareMessage()
-produces it (SPEC.md, "Link to the drone"): 'b', the length as two upper-case hex digits, every
+produces it (the link to the drone): 'b', the length as two upper-case hex digits, every
 payload byte as two hex digits, then the 8-bit sum of all characters before it as two hex digits.
 The C receiver and the Python decoder are also run side by side on the same streams.
 """

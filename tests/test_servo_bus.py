@@ -2,7 +2,7 @@
 board: power switching, boot wait, configuration, the per-tick traffic, and faults.
 
 Everything is observed as the hardware would: the instruction packets the board sends
-(checked against AX12_FACTS.md framing and rebuilt with the official DynamixelSDK), the
+(checked against the AX-12A e-manual's framing and rebuilt with the official DynamixelSDK), the
 simulated AX-12A servos' registers, and the heartbeat frames on the link. Counters the
 heartbeat does not carry are read from the driver's state for the per-servo detail.
 """
@@ -18,7 +18,7 @@ from simboard_tools import (
 )
 from uavarm.board import baud_register
 
-# AX12_FACTS.md control table
+# AX-12A e-manual control table
 ADDR = {"return_delay_time": 5, "cw_angle_limit": 6, "temperature_limit": 11, "status_return_level": 16,
         "shutdown": 18, "torque_enable": 24, "goal_position": 30, "moving_speed": 32, "torque_limit": 34, "present_position": 36,
         "present_temperature": 43}
@@ -122,7 +122,7 @@ def test_every_packet_is_what_the_official_sdk_builds():
 
 
 def test_a_command_beyond_the_registers_ranges_is_held_back():
-    """Goal Position takes 0..1023 and Moving Speed 0..2047 (AX12_FACTS.md control table):
+    """Goal Position takes 0..1023 and Moving Speed 0..2047 (the e-manual's control table):
     the driver sends no SYNC_WRITE with a value beyond, and the next command replaces it."""
     board, log = enabled_board()
     ffi, lib, bus = board.ffi, board.lib, board.app.bus
@@ -307,7 +307,7 @@ def test_overload_is_reported_in_the_heartbeat():
     assert not hb["faults"] & FAULT["servo_timeout"]
     c = servo_c(board, j)
     assert c.error_packets > 0 and c.error_bits[5] == c.error_packets
-    # the servo's own Shutdown cut its torque (AX12_FACTS: Shutdown 0x24 includes overload)
+    # the servo's own Shutdown cut its torque (e-manual: Shutdown 0x24 includes overload)
     assert board.bus.servo(IDS[j]).register("torque_limit") == 0
 
     board.bus.servo(IDS[j]).overload = False

@@ -1,5 +1,5 @@
 """Joint angle <-> AX-12A units against the servo's documented scale: 1023 units over
-300 degrees (AX12_FACTS.md), the model's zero and direction."""
+300 degrees (AX-12A e-manual), the model's zero and direction."""
 import math
 
 import numpy as np

@@ -24,7 +24,7 @@ def dh(theta, alpha, r, d):
 
 
 def fk_dh(m, q):
-    """SPEC.md's DH chain, as 4x4 matrices."""
+    """The arm's DH chain, as 4x4 matrices."""
     T = dh(-q[0], math.pi / 2, 0, -m.L1) @ dh(-math.pi / 2 + q[1], 0, m.L2, 0) @ dh(q[2], 0, m.L3, 0)
     return T[:3, 3]
 

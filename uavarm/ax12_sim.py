@@ -1,6 +1,6 @@
 """Dynamixel AX-12A servos on a Protocol 1.0 bus: a deterministic simulator.
 
-Written from the project's servo notes (reference/AX12_FACTS.md: ROBOTIS e-manual, the
+Written from the servo's documentation (the ROBOTIS AX-12A e-manual, the
 legacy AX-12 manual, DynamixelSDK). Time only moves when `step()` is called.
 
     bus = AX12Bus(baud=1_000_000)

@@ -1,30 +1,14 @@
-"""Cortex-M4 emulation (../shared/tools/m4count.py) for the bench and the target tests."""
+"""The target side of the bench and the target tests: the project's flags for the Cortex-M4F
+counter (uavarm/m4), the plain reference's model numbers, and per-file object sizes."""
 from __future__ import annotations
 
-import importlib.util
 import math
-import os
-import sys
-from functools import lru_cache
 from pathlib import Path
 
 from . import cbuild
 
-M4COUNT = Path(os.environ.get("M4COUNT", cbuild.ROOT.parent / "shared" / "tools" / "m4count.py"))
-# m4count adds the CPU/FPU flags itself; these are the project's own.
+# uavarm.m4.build adds -O2 and the CPU/FPU flags itself; these are the project's own.
 M4_CFLAGS = [f for f in cbuild.COMMON_FLAGS if not f.startswith("-O")]
-
-
-@lru_cache(maxsize=None)
-def m4count():
-    """The m4count module, or a clear error saying where it was looked for."""
-    if not M4COUNT.exists():
-        raise FileNotFoundError(f"m4count not found at {M4COUNT} (set M4COUNT=path/to/m4count.py)")
-    spec = importlib.util.spec_from_file_location("m4count", M4COUNT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["m4count"] = module          # its dataclasses look themselves up here
-    spec.loader.exec_module(module)
-    return module
 
 
 def reference_defines(m) -> list[str]:

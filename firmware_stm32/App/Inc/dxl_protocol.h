@@ -1,5 +1,5 @@
 /* Dynamixel Protocol 1.0 packets for the AX-12A servo bus (ROBOTIS e-manual "Protocol 1.0";
- * the facts used are collected in the project's reference notes, AX12_FACTS.md).
+ * the facts used are the AX-12A's written ones, as that e-manual states them).
  *
  *   instruction  FF FF ID LEN INST P1..PN CHK      LEN = N + 2
  *   status       FF FF ID LEN ERR  P1..PN CHK      CHK = ~(ID + LEN + INST|ERR + P1..PN) & 0xFF
