@@ -26,8 +26,8 @@ from uavarm.link import ArmLink
 from uavarm.model import config
 from uavarm.sitl import Sitl
 
-SPEED = 4.0                        # simulated seconds per real second
-SECONDS = 0.5                      # real seconds of samples per position (2 simulated)
+SPEED = 2.0                        # simulated seconds per real second
+SECONDS = 1.0                      # real seconds of samples per position (2 simulated)
 # (roll, pitch) that put each IMU axis up, then down (IMU axes = base axes here)
 SIX = [(0.0, 0.0), (math.pi, 0.0), (0.0, -math.pi / 2), (0.0, math.pi / 2), (math.pi / 2, 0.0), (-math.pi / 2, 0.0)]
 
@@ -221,3 +221,57 @@ def test_the_firmware_undoes_the_calibrated_bias_and_scale_and_starts_from_the_g
     lib.stab_reset(stab)
     lib.stab_sample(stab, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], 0, False)
     assert list(stab.quat.bias) == pytest.approx(np.radians(gyro_dps), abs=1e-6)   # mounting: identity
+
+
+# ---------------------------------------------------------------- servo zeros and directions
+
+TRUTH_ZERO = [520, 497, 505]       # the units each servo reads with its joint at 0 deg
+TRUTH_DIRECTION = [1, -1, 1]       # joint 2's servo mounted the other way round
+
+
+def enabled_sitl():
+    s = run_sitl()
+    arm = ArmLink(s.device)
+    arm.enable()
+    parked = [name for name, _ in __import__("uavarm").messages.STATES].index("parked")
+    end = time.monotonic() + 10
+    while arm.next_heartbeat()["state"] != parked:
+        assert time.monotonic() < end, "the arm did not park"
+    return s, arm
+
+
+def test_servo_calibration_finds_each_zero_and_direction(model_copy):
+    s, arm = enabled_sitl()
+    shafts = s.board.bus.servos
+
+    def hold_at_zero(text):
+        for servo, units in zip(shafts, TRUTH_ZERO):
+            servo.turn_by_hand(units)
+        time.sleep(0.1)
+
+    def user(question):
+        if question.startswith("Did joint"):
+            j = int(question.split()[2]) - 1
+            return (shafts[j].position - TRUTH_ZERO[j]) * TRUTH_DIRECTION[j] > 0   # what the user sees
+        return True
+    try:
+        assert calibrate.servos(arm, model_copy, hold_at_zero, user, seconds=SECONDS)
+    finally:
+        arm.close()
+        s.stop()
+    m = config.load(model_copy)
+    assert [sv.zero for sv in m.servos] == TRUTH_ZERO
+    assert [sv.direction for sv in m.servos] == TRUTH_DIRECTION
+
+
+def test_servo_calibration_with_a_servo_unplugged_names_it(model_copy):
+    s, arm = enabled_sitl()
+    before = model_copy.read_bytes()
+    s.board.bus.servos = s.board.bus.servos[:2]                  # joint 3's cable pulled
+    try:
+        with pytest.raises(CalibrationError, match=r"no readings from the servo of joint\(s\) \[3\]"):
+            calibrate.servos(arm, model_copy, lambda text: time.sleep(0.1), lambda q: True, seconds=SECONDS)
+    finally:
+        arm.close()
+        s.stop()
+    assert model_copy.read_bytes() == before

@@ -89,9 +89,10 @@ def main(argv=None) -> int:
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
     cal = sub.add_parser("calibrate", help="guided calibration over the link, written into the model file")
-    cal.add_argument("what", choices=["imu", "mounting"],
+    cal.add_argument("what", choices=["imu", "mounting", "servos"],
                      help="imu: accelerometer bias and scale (six still positions) and the gyro's offset; "
-                          "mounting: the IMU's roll and pitch on the base (drone standing level)")
+                          "mounting: the IMU's roll and pitch on the base (drone standing level); servos: "
+                          "each servo's zero and direction (the arm held at its zero pose, then small jogs)")
     cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")
     cal.add_argument("--model", default=None, help="model file to update (default model/manipulator.toml)")
     cal.add_argument("--seconds", type=float, default=2.0, help="seconds of samples per position")
