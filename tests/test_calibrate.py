@@ -8,6 +8,7 @@ it was given, and synthetic readings built from a known bias and scale.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import shutil
 import subprocess
@@ -72,6 +73,18 @@ def run_sitl(**board_options):
     return s
 
 
+@contextlib.contextmanager
+def sitl_link(**board_options):
+    """A SITL running in a thread and a link to it that has seen a heartbeat: (sitl, arm)."""
+    s = run_sitl(**board_options)
+    try:
+        with ArmLink(s.device) as arm:
+            arm.next_heartbeat()
+            yield s, arm
+    finally:
+        s.stop()
+
+
 def sensor(profile="datasheet", seed=1):
     """Bench conditions: motors off, so no propeller vibration."""
     return Mpu6050Sensor(profile, seed=seed, vibration_from=math.inf)
@@ -90,13 +103,8 @@ def turning(sitl, orientations, hold=0.15):
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_imu_calibration_recovers_the_sensors_errors(model_copy, seed):
-    s = run_sitl(sensor=sensor(seed=seed))
-    try:
-        with ArmLink(s.device) as arm:
-            arm.next_heartbeat()
-            assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
-    finally:
-        s.stop()
+    with sitl_link(sensor=sensor(seed=seed)) as (s, arm):
+        assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
     truth = s.board.sensor.draw
     cal = config.load(model_copy).imu_calibration
     assert np.abs(np.array(cal.accel_bias) - truth.accel_bias).max() <= 0.002            # 2 mg
@@ -107,59 +115,38 @@ def test_imu_calibration_recovers_the_sensors_errors(model_copy, seed):
 
 
 def test_moving_during_a_position_is_refused_and_the_model_left_as_it_was(model_copy, capsys):
-    s = run_sitl(sensor=sensor())
     before = model_copy.read_bytes()
-
-    def shaking(text):
-        s.board.motion = Rocking(math.radians(10), 0.0, 2.0)
-    try:
-        with ArmLink(s.device) as arm:
-            arm.next_heartbeat()
-            with pytest.raises(CalibrationError, match="the board moved"):
-                calibrate.imu(arm, model_copy, shaking, lambda q: True, seconds=SECONDS)
-            assert not arm.collect("imu_raw", 0.3), "the stream is stopped again"
-    finally:
-        s.stop()
+    with sitl_link(sensor=sensor()) as (s, arm):
+        def shaking(text):
+            s.board.motion = Rocking(math.radians(10), 0.0, 2.0)
+        with pytest.raises(CalibrationError, match="the board moved"):
+            calibrate.imu(arm, model_copy, shaking, lambda q: True, seconds=SECONDS)
+        assert not arm.collect("imu_raw", 0.3), "the stream is stopped again"
     assert model_copy.read_bytes() == before
     assert capsys.readouterr().out.count("the board moved") == calibrate.TRIES - 1
 
 
 def test_declining_the_diff_writes_nothing(model_copy):
-    s = run_sitl(sensor=sensor())
     before = model_copy.read_bytes()
-    try:
-        with ArmLink(s.device) as arm:
-            arm.next_heartbeat()
-            assert not calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: False, seconds=SECONDS)
-    finally:
-        s.stop()
+    with sitl_link(sensor=sensor()) as (s, arm):
+        assert not calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: False, seconds=SECONDS)
     assert model_copy.read_bytes() == before
 
 
 def test_mounting_calibration_finds_how_the_imu_sits(model_copy):
     truth = (2.5, -3.0, 0.0)
-    s = run_sitl(sensor=sensor("ideal"), imu_mounting_rpy_deg=truth)
-    try:
-        with ArmLink(s.device) as arm:
-            arm.next_heartbeat()
-            assert calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS,
-                                      uncalibrated_ok=True)   # (an ideal IMU)
-    finally:
-        s.stop()
+    with sitl_link(sensor=sensor("ideal"), imu_mounting_rpy_deg=truth) as (s, arm):
+        assert calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS,
+                                  uncalibrated_ok=True)   # (an ideal IMU)
     roll, pitch, yaw = config.load(model_copy).imu_mounting_rpy_deg
     assert roll == pytest.approx(truth[0], abs=0.05) and pitch == pytest.approx(truth[1], abs=0.05) and yaw == 0.0
 
 
 def test_mounting_refuses_an_uncalibrated_accelerometer(model_copy):
-    s = run_sitl(sensor=sensor())
     before = model_copy.read_bytes()
-    try:
-        with ArmLink(s.device) as arm:
-            arm.next_heartbeat()
-            with pytest.raises(CalibrationError, match="run `uavarm calibrate imu` first"):
-                calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS)
-    finally:
-        s.stop()
+    with sitl_link(sensor=sensor()) as (s, arm):
+        with pytest.raises(CalibrationError, match="run `uavarm calibrate imu` first"):
+            calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS)
     assert model_copy.read_bytes() == before
 
 
@@ -167,15 +154,10 @@ def test_mounting_after_imu_calibration_on_a_datasheet_imu(model_copy):
     """The whole bench sequence: the accelerometer first, then the mounting, on an IMU with
     datasheet errors sitting 2.5 deg / -3 deg on the base."""
     truth = (2.5, -3.0, 0.0)
-    s = run_sitl(sensor=sensor(seed=2), imu_mounting_rpy_deg=truth)
-    try:
-        with ArmLink(s.device) as arm:
-            arm.next_heartbeat()
-            # the six positions turn the base; the IMU's axes are the base's turned by the mounting
-            assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
-            assert calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS)
-    finally:
-        s.stop()
+    with sitl_link(sensor=sensor(seed=2), imu_mounting_rpy_deg=truth) as (s, arm):
+        # the six positions turn the base; the IMU's axes are the base's turned by the mounting
+        assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+        assert calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), lambda q: True, seconds=SECONDS)
     roll, pitch, _ = config.load(model_copy).imu_mounting_rpy_deg
     assert roll == pytest.approx(truth[0], abs=0.2) and pitch == pytest.approx(truth[1], abs=0.2)
 

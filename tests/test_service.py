@@ -54,6 +54,14 @@ def after_heartbeat(inv):
     return inv.board.heartbeats[-1]
 
 
+def limp_and_turn(inv, j, units):
+    """Torque off, then joint j's shaft turned by hand to `units`."""
+    inv.board.send("torque", on=0)
+    inv.run(0.2)
+    inv.board.bus.servos[j].turn_by_hand(units)
+    inv.run(0.1)
+
+
 def torque_writes(inv, since):
     """(servo id, value) of every WRITE to Torque Enable sent after `since`."""
     return [(p.id, p.params[1]) for p in inv.log.tx
@@ -112,10 +120,7 @@ def test_service_commands_are_refused_while_engaged_or_disabled():
 
 def test_engage_while_limp_turns_the_torque_on_and_parks_first():
     board, inv = parked()
-    board.send("torque", on=0)
-    inv.run(0.2)
-    board.bus.servos[0].turn_by_hand(PARK_UNITS[0] + 60)
-    inv.run(0.1)
+    limp_and_turn(inv, 0, PARK_UNITS[0] + 60)
     board.send("engage", on=1)
     after_heartbeat(inv)
     assert refusal(board) == "servos_starting" and not board.heartbeats[-1]["engaged"]
@@ -166,10 +171,7 @@ def test_a_bad_jog_is_refused_and_nothing_moves(joint, mode, value):
 
 def test_jog_while_limp_turns_the_torque_on_and_goes_there():
     board, inv = parked()
-    board.send("torque", on=0)
-    inv.run(0.2)
-    board.bus.servos[2].turn_by_hand(PARK_UNITS[2] + 30)
-    inv.run(0.1)
+    limp_and_turn(inv, 2, PARK_UNITS[2] + 30)
     board.send("jog", joint=3, mode=1, value=-30.0)
     assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
     assert shaft_units(board)[2] == pytest.approx(PARK_UNITS[2], abs=1.5)
