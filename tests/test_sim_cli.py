@@ -1,6 +1,9 @@
 """`uavarm sim`, `uavarm workspace` and the report's entry point, from the shell's side."""
 from __future__ import annotations
 
+import math
+import re
+
 from dataclasses import replace
 
 import numpy as np
@@ -61,27 +64,57 @@ def test_sim_rejects_nonsense_durations(capsys):
         cli.main(["sim", "bench", "--seconds", "0"])
 
 
-def test_workspace_plot(tmp_path, capsys):
+def test_workspace_figure_png_and_pdf_with_the_reach_of_plain_geometry(tmp_path, capsys):
+    """The horizontal reach ahead and behind is the stretched arm level with the shoulder
+    (L2 + L3, below the body plane); beside a leg the leg distance; the lowest point the arm
+    hanging straight down (L1 + L2 + L3). Within the figure's 0.5 mm grid."""
+    m = config.load()
     out = tmp_path / "ws.png"
     assert cli.main(["workspace", "--out", str(out)]) == 0
-    assert out.read_bytes()[:4] == b"\x89PNG"
-    assert "valid" in capsys.readouterr().out
+    assert out.read_bytes()[:4] == b"\x89PNG" and out.with_suffix(".pdf").read_bytes()[:4] == b"%PDF"
+    printed = capsys.readouterr().out
+    figures = {k: float(v) for k, v in re.findall(r"(reach|reach behind|reach beside a leg|lowest) (-?[\d.]+) mm",
+                                                     printed)}
+    assert figures["reach"] == pytest.approx(m.L2 + m.L3, abs=0.5)
+    assert figures["reach behind"] == pytest.approx(m.L2 + m.L3, abs=0.5)
+    assert figures["reach beside a leg"] == pytest.approx(m.leg_distance, abs=0.5)
+    assert figures["lowest"] == pytest.approx(-(m.L1 + m.L2 + m.L3), abs=0.5)
 
 
-def test_workspace_classes_follow_the_models_limits():
-    """The sampled classes agree with the model's limits, computed plainly here."""
+def test_workspace_ik_reaches_each_point_through_the_models_own_kinematics():
     m = config.load()
-    ee, j3, cls = workspace.sample(m, steps=(9, 9, 9))
-    assert ee.shape == (729, 3) and set(np.unique(cls)) <= {0, 1, 2, 3}
-    axes = [np.linspace(max(l.min_deg - 20, -180), min(l.max_deg + 20, 180), 9) for l in m.limits]
-    q = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-    outside = np.zeros(len(q), bool)
-    for j, l in enumerate(m.limits):
-        outside |= (q[:, j] < l.min_deg - 1e-9) | (q[:, j] > l.max_deg + 1e-9)
-    assert np.array_equal(cls == 1, outside)
-    inside = ~outside
-    above = (ee[:, 2] >= m.body_z) | (j3[:, 2] >= m.body_z)
-    assert np.array_equal((cls == 2)[inside], above[inside])
+    pred = workspace.Predicates(m)
+    rng = np.random.default_rng(5)
+    u, z = rng.uniform(-200, 200, 4000), rng.uniform(-220, 60, 4000)
+    for q2, q3 in workspace.plane_ik(m, u, z):
+        ok = np.isfinite(q3)
+        _, _, fu, fz = pred.in_plane(0.0, q2[ok], q3[ok])
+        assert np.allclose(fu, u[ok], atol=1e-9) and np.allclose(fz, z[ok], atol=1e-9)
+    far = np.hypot(u, z + m.L1) > m.L2 + m.L3 + 1e-9
+    assert far.any() and all(np.isnan(q3[far]).all() for _, q3 in workspace.plane_ik(m, u, z))
+
+
+def test_workspace_classes_agree_with_the_models_predicates_and_plain_geometry():
+    """The point of a pose valid by the model's predicates is classed valid; no point in or
+    above the body plane is, nor one beyond the leg distance in a leg's plane."""
+    m = config.load()
+    pred = workspace.Predicates(m)
+    rng = np.random.default_rng(6)
+    lo = np.radians([l.min_deg - 20 for l in m.limits])
+    hi = np.radians([l.max_deg + 20 for l in m.limits])
+    q = rng.uniform(lo, hi, (3000, 3))
+    valid_class = workspace.CLASSES.index("valid")
+    for q1, leg_plane in ((0.0, False), (math.radians(m.leg_angles[0]), True)):
+        q[:, 0] = q1
+        ok = pred.limits(*q.T) & pred.body(*q.T) & pred.legs(*q.T)
+        _, _, u, z = pred.in_plane(q1, q[:, 1], q[:, 2])
+        cls = workspace.classify_plane(m, pred, q1, u, z)
+        assert ok.sum() > 300 and (cls[ok] == valid_class).all()
+        grid_u, grid_z = np.meshgrid(np.linspace(-200, 200, 201), np.linspace(-220, 60, 141))
+        grid = workspace.classify_plane(m, pred, q1, grid_u, grid_z)
+        assert not (grid[grid_z > m.body_z + 1e-6] == valid_class).any()   # (on it: rounding)
+        if leg_plane:
+            assert not (grid[np.abs(grid_u) > m.leg_distance + 1e-6] == valid_class).any()
 
 
 def test_report_stops_on_an_unknown_estimator_key(tmp_path, capsys):

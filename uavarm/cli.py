@@ -160,8 +160,9 @@ def main(argv=None) -> int:
         except config.ModelError as exc:
             print(f"error: {exc}", file=sys.stderr)
             return 2
-        counts = plot(model, Path(args.out))
-        print(f"wrote {args.out}: " + ", ".join(f"{k} {v}" for k, v in counts.items()) + " sampled poses")
+        figures = plot(model, Path(args.out))
+        print(f"wrote {args.out} and {Path(args.out).with_suffix('.pdf')}: "
+              + ", ".join(f"{k} {v:.1f} mm" for k, v in figures.items()))
         return 0
     if args.command == "calibrate":
         from .calibrate import command
