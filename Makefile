@@ -20,18 +20,18 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(PY) bench/run.py
 
-# The closed-loop simulator's full table (README "Closed-loop simulator"): bench, hover and
+# The closed-loop simulator's full table (docs/simulator.md): bench, hover and
 # manoeuvre x the complementary, quaternion and link estimators x 3 seeds x 60 s, into
 # build/sim-report/report.md with plots. Stops with the key's name if a preset's model keys
 # are unknown to this firmware.
 sim-report: $(STAMP)
 	$(PY) -m uavarm.sim_report --out build/sim-report
 
-# Fuzz harnesses (fuzz/, README "Fuzzing"; needs clang libclang-rt-14-dev and atheris).
+# Fuzz harnesses (fuzz/, docs/fuzzing.md; needs clang libclang-rt-14-dev and atheris).
 fuzz: $(STAMP)
 	$(PY) fuzz/run.py --time 20 --jobs 2
 
-# The long run of the README's figures: 10 million inputs of each harness; the whole
+# The long run of docs/fuzzing.md's figures: 10 million inputs of each harness; the whole
 # application and the model loader on both cores, 5 million each (about two hours in all
 # on an idle 2-core machine).
 fuzz-long: $(STAMP)

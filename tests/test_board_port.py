@@ -6,7 +6,7 @@ Oracles: the HAL's documented conventions (UM1725: I2C DevAddress is the 7-bit a
 shifted left by one, MemAddSize I2C_MEMADD_SIZE_8BIT for one-byte register addresses;
 HAL_UART_TxCpltCallback comes at transmission complete), UART framing (8N1: 10 bit times a
 byte), the I2C specification's bus-clear procedure (UM10204 3.1.16: up to nine SCL
-pulses), the pin map (Core/Inc/main.h, README) and board_config.h's polarities.
+pulses), the pin map (Core/Inc/main.h, docs/board-project.md) and board_config.h's polarities.
 """
 import pytest
 

@@ -1,4 +1,4 @@
-"""The fuzz harnesses (fuzz/, README "Fuzzing"): every harness builds with libFuzzer,
+"""The fuzz harnesses (fuzz/, docs/fuzzing.md): every harness builds with libFuzzer,
 AddressSanitizer and UndefinedBehaviorSanitizer, replays its committed seeds without a
 finding, and survives a short bounded run (all four side by side on two cores, about
 45 s of wall time). The long run is `make fuzz-long`.

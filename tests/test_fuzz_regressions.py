@@ -1,4 +1,4 @@
-"""Regression tests of what the fuzz harnesses found (fuzz/, README "Fuzzing"). Each test
+"""Regression tests of what the fuzz harnesses found (fuzz/, docs/fuzzing.md). Each test
 names what escaped before the fix. The same inputs are committed to the harness's seed
 corpus (fuzz/corpus/<harness>/regress-*), so the harness replays them too.
 

@@ -7,7 +7,7 @@ set position must look like: joint 1 still where it has no direction to follow, 
 no jumps.
 
 Oracles: plain geometry (tests/oracles.py), the AX-12A's written unit facts, the rocking's
-own attitude. The figures printed are those of the README's motion table.
+own attitude. The figures printed are those of docs/firmware.md's motion table.
 """
 from __future__ import annotations
 

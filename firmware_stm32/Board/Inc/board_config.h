@@ -1,7 +1,7 @@
 /* Board settings: what differs between the custom board and a NUCLEO-F411RE, and what the
  * model file does not say (it describes the arm, not the board). The pin map is in
  * Core/Inc/main.h (CubeMX writes it there from the pin labels of manipulator.ioc) and in
- * the README's table. Each setting may be overridden on the compiler command line, e.g.
+ * docs/board-project.md's table. Each setting may be overridden on the compiler command line, e.g.
  * `make ... HSE_HZ=25000000 HSE_BYPASS=1` (the Makefile passes -DBOARD_HSE_HZ=...). */
 #ifndef BOARD_CONFIG_H
 #define BOARD_CONFIG_H
