@@ -52,6 +52,21 @@ def require_ros():
     return rospy
 
 
+CATKIN_PACKAGES = "catkin ros-message-generation python3-gencpp catkin-lint"
+
+
+def require_catkin():
+    """Debian's catkin with message generation, and catkin_lint, for the package's build:
+    skipped on a developer machine without them, never in CI."""
+    missing = next((tool for tool in ("catkin_make", "catkin_lint") if shutil.which(tool) is None), None)
+    if missing is None and not Path("/usr/share/message_generation/cmake").exists():
+        missing = "message_generation"
+    if missing is not None:
+        if os.environ.get("CI"):
+            pytest.fail(f"{missing} missing in CI: .ci/run must install {CATKIN_PACKAGES}")
+        pytest.skip(f"{missing} not installed: apt-get install {CATKIN_PACKAGES}")
+
+
 def require_clang_fuzzer():
     """clang with libFuzzer, ASan and UBSan, and atheris, for the fuzz harnesses (fuzz/):
     skipped on a developer machine without them, never in CI."""
