@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import difflib
 import hashlib
+import math
 import sys
 from pathlib import Path
 
@@ -291,6 +292,24 @@ def estimator_context(m: config.Model):
     }
 
 
+def urdf_context(m: config.Model):
+    """The arm as a URDF chain (metres, radians): joint 1 about the base's -z at the base
+    origin, joints 2 and 3 about -y (the arm's plane x-z at joint 1 = 0), each L below the last."""
+    metres = lambda mm: f"{mm / 1000:.6g}"
+    names = ("arm_joint1", "arm_joint2", "arm_joint3")
+    links = ("arm_turret", "upper_arm", "forearm")
+    parents = ("arm_base",) + links[:2]
+    drops, lengths = (0.0, m.L1, m.L2), (m.L1, m.L2, m.L3)
+    joints = [{"name": n, "parent": p, "child": c, "drop": metres(d), "axis": "0 0 -1" if k == 0 else "0 -1 0",
+               "lower": f"{math.radians(lim.min_deg):.9g}", "upper": f"{math.radians(lim.max_deg):.9g}",
+               "length": metres(length) if k else "", "half_length": metres(length / 2)}
+              for k, (n, p, c, d, lim, length) in enumerate(zip(names, parents, links, drops, m.limits,
+                                                                (0.0, m.L2, m.L3)))]
+    return {"joints": joints, "offset": [metres(v) for v in m.mount_offset], "l1": metres(m.L1),
+            "half_l1": metres(-m.L1 / 2), "l3": metres(m.L3),
+            "velocity": f"{float(servo.rad_per_s(servo.speed_units(m.working_speed_rpm))):.6g}"}
+
+
 def params_context(m: config.Model):
     """Model numbers the application uses as they are (units, register values, ms)."""
     ms = lambda s: round(s * 1000)
@@ -412,6 +431,7 @@ OUTPUTS = {
     "estimator.c": "estimator.c.j2",
     "messages.h": "messages.h.j2",
     "messages.c": "messages.c.j2",
+    "uavarm_arm.urdf": "arm.urdf.j2",
 }
 
 
@@ -438,6 +458,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "fm": fastmath_context(),
         "est": estimator_context(m),
         "params": params_context(m),
+        "urdf": urdf_context(m),
         "lit": float32_literal,
         "pi": sp.pi,
         "messages": messages.MESSAGES,

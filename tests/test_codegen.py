@@ -43,7 +43,7 @@ DOUBLE_PATTERNS = {
 }
 
 
-FLOAT32_C = sorted(GENERATED.iterdir()) + sorted((firmware.APP / "Src").glob("*.c")) + \
+FLOAT32_C = sorted(GENERATED.glob("*.[ch]")) + sorted((firmware.APP / "Src").glob("*.c")) + \
     sorted((firmware.APP / "Inc").glob("*.h"))
 
 
