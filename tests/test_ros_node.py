@@ -147,6 +147,9 @@ class Arm:
                                      stderr=subprocess.STDOUT)
         self.statuses = queue.Queue()
         self.sub = rospy.Subscriber(f"/{ns}/arm/status", self.msg.ArmStatus, self.statuses.put)
+        from sensor_msgs.msg import JointState
+        self.joint_states = queue.Queue()
+        self.joint_sub = rospy.Subscriber(f"/{ns}/joint_states", JointState, self.joint_states.put)
 
     def wait_ready(self):
         from std_srvs.srv import SetBool
@@ -190,6 +193,7 @@ class Arm:
 
     def close(self):
         self.sub.unregister()
+        self.joint_sub.unregister()
         stop_group(self.proc)
         self.log_file.close()
         self.sitl.stop()
@@ -241,6 +245,8 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     status = arm.wait_status(lambda s: True, 2.0)
     assert status is not None and not status.enabled and not status.engaged and status.fault_names == []
     assert status.reset_cause == "power_on" and status.last_fault == ""
+    js = arm.joint_states.get(timeout=10)          # each heartbeat also as a JointState
+    assert list(js.name) == ["arm_joint1", "arm_joint2", "arm_joint3"] and len(js.position) == 3
 
     r = arm.call("engage", True)
     assert not r.success and "not enabled" in r.message

@@ -84,3 +84,9 @@ def test_urdf_limits_are_the_models():
         limit = j.find("limit")
         assert math.degrees(float(limit.get("lower"))) == pytest.approx(lim.min_deg, abs=1e-6)
         assert math.degrees(float(limit.get("upper"))) == pytest.approx(lim.max_deg, abs=1e-6)
+
+
+def test_the_ros_node_names_the_urdfs_joints():
+    from uavarm.ros_node import JOINT_NAMES
+    root = ET.parse(URDF).getroot()
+    assert [j.get("name") for j in chain(root) if j.get("type") == "revolute"] == list(JOINT_NAMES)

@@ -80,6 +80,10 @@ def _debian_ros_path() -> bool:
     return True
 
 
+# The arm's joints as the generated URDF (generated/uavarm_arm.urdf) names them.
+JOINT_NAMES = ("arm_joint1", "arm_joint2", "arm_joint3")
+
+
 def import_ros():
     """rospy (ImportError when ROS 1 is not installed)."""
     try:
@@ -289,6 +293,9 @@ class ArmNode:
         self._silent = False
 
         self.status_pub = rospy.Publisher("~status", msg.ArmStatus, queue_size=10)
+        from sensor_msgs.msg import JointState
+        self.joint_pub = rospy.Publisher("joint_states", JointState, queue_size=10)   # robot_state_publisher's
+        self._joint_state = JointState
         rospy.Subscriber(topic, att_class, self._on_attitude, queue_size=1)
         self._open(time.monotonic())
         rospy.Service("~enable", SetBool, self._on_enable)
@@ -397,6 +404,11 @@ class ArmNode:
         m.link_frames_ok, m.link_errors, m.servo_timeouts = (hb["link_frames_ok"], hb["link_errors"],
                                                              hb["servo_timeouts"])
         self.status_pub.publish(m)
+        js = self._joint_state()
+        js.header.stamp = m.stamp
+        js.name = list(JOINT_NAMES)
+        js.position = list(m.joints)
+        self.joint_pub.publish(js)
 
     def _on_attitude(self, message) -> None:
         q = self._orientation(message)
