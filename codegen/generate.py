@@ -417,6 +417,9 @@ def fastmath_context():
             "tan_pi_8": float32_literal(sp.tan(sp.pi / 8))}
 
 
+URDF = "uavarm_arm.urdf"
+ROS_URDF_DIR = ROOT / "ros" / "uavarm_ros" / "urdf"
+
 OUTPUTS = {
     "fastmath.h": "fastmath.h.j2",
     "fastmath.c": "fastmath.c.j2",
@@ -431,7 +434,7 @@ OUTPUTS = {
     "estimator.c": "estimator.c.j2",
     "messages.h": "messages.h.j2",
     "messages.c": "messages.c.j2",
-    "uavarm_arm.urdf": "arm.urdf.j2",
+    URDF: "arm.urdf.j2",
 }
 
 
@@ -515,15 +518,18 @@ def main(argv=None) -> int:
                     help="board project whose .ioc and main.h get the model's user constants "
                          "(default: firmware_stm32/ when --out is the default folder)")
     args = ap.parse_args(argv)
-    board = args.board or (board_ioc.BOARD if args.out.resolve() == GENERATED.resolve() else None)
+    default_out = args.out.resolve() == GENERATED.resolve()
+    board = args.board or (board_ioc.BOARD if default_out else None)
     try:
         files = render(args.model)
         board_files = board_ioc.render(args.model, board) if board else {}
     except config.ModelError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    # the ROS package carries the URDF too, so its launch file finds it in any catkin workspace
+    ros_files = {URDF: files[URDF]} if default_out else {}
     if args.check:
-        d = diff(files, args.out) + (diff(board_files, board) if board else "")
+        d = diff(files, args.out) + (diff(board_files, board) if board else "") + diff(ros_files, ROS_URDF_DIR)
         if d:
             sys.stdout.write(d)
             print(f"\n{args.out} is stale: run `{REGENERATE}`", file=sys.stderr)
@@ -531,5 +537,6 @@ def main(argv=None) -> int:
         print(f"{args.out} is up to date")
         return 0
     changed = write(files, args.out) + (board_ioc.write(board_files, board) if board else [])
+    changed += [f"ros/uavarm_ros/urdf/{name}" for name in write(ros_files, ROS_URDF_DIR)] if ros_files else []
     print(f"{args.out}: {len(files)} files, {len(changed)} changed" + (f" ({', '.join(changed)})" if changed else ""))
     return 0

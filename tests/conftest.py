@@ -38,14 +38,16 @@ def require_ros():
         from uavarm.ros_node import import_ros
         rospy = import_ros()
         import genpy  # noqa: F401  (generates the node's msg and srv classes)
-        import nav_msgs.msg, sensor_msgs.msg, std_srvs.srv  # noqa: E401,F401
+        import nav_msgs.msg, sensor_msgs.msg, std_srvs.srv, tf2_ros  # noqa: E401,F401
     except ImportError as exc:
         missing = exc.name or str(exc)
     if missing is None:
         missing = next((tool for tool in ("roscore", "roslaunch") if shutil.which(tool) is None), None)
+    if missing is None and not Path("/usr/lib/robot_state_publisher/robot_state_publisher").exists():
+        missing = "robot_state_publisher"
     if missing is not None:
         packages = ("ros-core python3-rospy python3-std-srvs python3-geometry-msgs python3-sensor-msgs "
-                    "python3-nav-msgs python3-genpy")
+                    "python3-nav-msgs python3-genpy ros-robot-state-publisher python3-tf2-ros")
         if os.environ.get("CI"):
             pytest.fail(f"ROS 1 ({missing}) missing in CI: .ci/run must install {packages}")
         pytest.skip(f"ROS 1 not installed ({missing} missing): apt-get install {packages}")

@@ -258,6 +258,18 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     assert status is not None, "the parked pose was not reached"
     assert not status.engaged
     print(f"parked: joints within {np.degrees(np.abs(joints(status) - park).max()):.3f} deg of park.q")
+    # the arm's TF from robot_state_publisher: the end effector where the model's FK puts it
+    import tf2_ros
+    from uavarm import firmware
+    buffer = tf2_ros.Buffer()
+    tf2_ros.TransformListener(buffer)
+    t = buffer.lookup_transform("uav_frame", "end_effector", arm.rospy.Time(0), arm.rospy.Duration(10.0))
+    ffi, lib = firmware.default()
+    ee = ffi.new("float[3]")
+    lib.kin_fk_ee([float(v) for v in joints(status)], ee)
+    expected = (np.array(m.mount_offset) + np.array(list(ee))) / 1000.0
+    got = np.array([t.transform.translation.x, t.transform.translation.y, t.transform.translation.z])
+    assert np.abs(got - expected).max() < 1e-4           # m: the parked arm stands still
 
 
 def test_engage_reaches_the_set_position_and_disable_cuts_power(start_arm):
