@@ -57,6 +57,7 @@ _KEYS_BY_TABLE = {
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
                  "link_bias_gain link_delay_min link_delay_max link_timeout lead_time",
 }
+UNKNOWN_KEYS_NAMED = 5
 KNOWN_KEYS = tuple(f"{table}.{name}" for table, names in _KEYS_BY_TABLE.items() for name in names.split())
 
 
@@ -391,15 +392,19 @@ def _leaf_keys(data: dict) -> list[str]:
 
 
 def _check_known_keys(path: Path, data: dict) -> None:
-    """Refuse keys the loader does not read, each with the nearest known key."""
+    """Refuse keys the loader does not read, each with the nearest known key (the first
+    UNKNOWN_KEYS_NAMED of them; then how many more)."""
+    unknown = [key for key in _leaf_keys(data)
+               if key not in KNOWN_KEYS and not any(k.startswith(key + ".") for k in KNOWN_KEYS)]
+    # (a table given as a value is not unknown: the typed reader says what it expects)
+    if not unknown:
+        return
     problems = []
-    for key in _leaf_keys(data):
-        if key in KNOWN_KEYS or any(k.startswith(key + ".") for k in KNOWN_KEYS):
-            continue      # (a table given as a value: the typed reader says what it expects)
+    for key in unknown[:UNKNOWN_KEYS_NAMED]:
         near = difflib.get_close_matches(key, KNOWN_KEYS, n=1)
         problems.append(f"{key}: unknown key" + (f" (did you mean {near[0]}?)" if near else ""))
-    if problems:
-        raise ModelError(f"{path}: " + "; ".join(problems))
+    more = len(unknown) - UNKNOWN_KEYS_NAMED
+    raise ModelError(f"{path}: " + "; ".join(problems) + (f"; and {more} more unknown keys" if more > 0 else ""))
 
 
 def _link(r: _Reader, key: str, zero_allowed: bool = False) -> float:

@@ -105,6 +105,12 @@ def test_every_unknown_key_is_named(tmp_path):
         assert f"geometryy.{name}: unknown key (did you mean geometry.{name}?)" in msg
 
 
+def test_many_unknown_keys_are_counted(tmp_path):
+    msg = broken(tmp_path, "[mount]", "[junk]\n" + "".join(f"k{i} = {i}\n" for i in range(100)) + "[mount]")
+    assert msg.count("unknown key") == config.UNKNOWN_KEYS_NAMED + 1      # (the last in "N more unknown keys")
+    assert f"and {100 - config.UNKNOWN_KEYS_NAMED} more unknown keys" in msg
+
+
 def test_calibration_keys_may_be_absent(tmp_path):
     text = BASE
     for line in ("accel_bias = [0.0, 0.0, 0.0]\n", "accel_scale = [1.0, 1.0, 1.0]\n",
