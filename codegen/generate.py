@@ -509,10 +509,12 @@ def diff(files: dict[str, str], out_dir: Path) -> str:
     return "".join(lines)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m uavarm.codegen", description=__doc__.splitlines()[0])
-    ap.add_argument("--model", type=Path, default=config.DEFAULT_MODEL, help="model file (TOML)")
-    ap.add_argument("--out", type=Path, default=GENERATED, help="output folder")
+def main(argv=None, prog: str = "python -m uavarm.codegen") -> int:
+    ap = argparse.ArgumentParser(prog=prog, description=__doc__.splitlines()[0].replace(
+        "python -m uavarm.codegen", prog))
+    ap.add_argument("--model", type=Path, default=config.DEFAULT_MODEL,
+                    help="model file, TOML (default: model/manipulator.toml)")
+    ap.add_argument("--out", type=Path, default=GENERATED, help="output folder (default: generated/)")
     ap.add_argument("--check", action="store_true", help="write nothing; fail if the output is stale")
     ap.add_argument("--board", type=Path, default=None,
                     help="board project whose .ioc and main.h get the model's user constants "

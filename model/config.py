@@ -6,6 +6,7 @@ the symbolic modules read nothing else.
 """
 from __future__ import annotations
 
+import difflib
 import hashlib
 import math
 from fractions import Fraction
@@ -26,6 +27,38 @@ SPEED_RPM_MAX = 1023 * RPM_PER_SPEED_UNIT        # AX-12A Moving Speed register 
 # least 1 um long, for the same reason at the other end (1e-300).
 LENGTH_MAX_MM = 10_000.0
 LENGTH_MIN_MM = 0.001
+# A link shorter than 1 mm is a length in metres by mistake (L2 = 0.065 for 65 mm).
+LINK_PLAUSIBLE_MM = 1.0
+# AX-12A Baud Rate register n = 0..254: the servo runs at 2,000,000 / (n + 1) bit/s, and a
+# UART hears another within 3 % (AX-12A e-manual, Baud Rate).
+AX12_BAUD_CLOCK = 2_000_000
+AX12_BAUD_REGISTER_MAX = 254
+BAUD_TOLERANCE = 0.03
+
+# Every key of the model file, by table; the imu.accel_bias, imu.accel_scale and
+# imu.gyro_bias_dps calibration may be absent. Any other key is refused (a typo would
+# otherwise be ignored, or reported as the key it was meant to be missing).
+_KEYS_BY_TABLE = {
+    "geometry": "L1 L2 L3",
+    "joints.theta1": "min max", "joints.theta2": "min max", "joints.theta3": "min max",
+    "collision": "body_z leg_angles leg_half_width leg_distance",
+    "servo": "baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
+             "working_speed_rpm boot_time",
+    "servo.theta1": "id zero direction", "servo.theta2": "id zero direction",
+    "servo.theta3": "id zero direction",
+    "park": "q",
+    "motion": "axis_hold_radius axis_release_radius follow_window_deg stretch_margin",
+    "link": "silence_timeout heartbeat_period frame_gap",
+    "imu": "sample_rate i2c_address accel_range_g gyro_range_dps dlpf_bandwidth mounting_rpy "
+           "accel_bias accel_scale gyro_bias_dps",
+    "mount": "offset",
+    "filters.accel": "cutoff order", "filters.gyro": "cutoff order",
+    "estimator": "kind complementary_gyro_weight accel_gain bias_gain align_accel_gain align_bias_gain "
+                 "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
+                 "link_bias_gain link_delay_min link_delay_max link_timeout lead_time",
+}
+UNKNOWN_KEYS_NAMED = 5
+KNOWN_KEYS = tuple(f"{table}.{name}" for table, names in _KEYS_BY_TABLE.items() for name in names.split())
 
 
 class ModelError(ValueError):
@@ -153,11 +186,14 @@ class _Reader:
     def __init__(self, path: Path, data: dict):
         self.path = path
         self.data = data
+        self.read: set[str] = set()      # every key asked for
+
 
     def fail(self, key: str, message: str) -> ModelError:
         return ModelError(f"{self.path}: {key}: {message}")
 
     def get(self, key: str):
+        self.read.add(key)
         node = self.data
         for part in key.split("."):
             if not isinstance(node, dict) or part not in node:
@@ -245,6 +281,7 @@ def parse(raw: bytes, path: Path) -> Model:
     except ValueError as exc:   # bad UTF-8 or TOML, or an integer of more than 4300 digits
         raise ModelError(f"{path}: not valid TOML: {exc}") from None
     _check_integers(path, data)
+    _check_known_keys(path, data)
     r = _Reader(path, data)
 
     limits = []
@@ -296,7 +333,7 @@ def parse(raw: bytes, path: Path) -> Model:
         leg_angles=r.number_list("collision.leg_angles", lo=-180.0, hi=180.0),
         leg_half_width=r.number("collision.leg_half_width", nonnegative=True, hi=90.0),
         leg_distance=r.number("collision.leg_distance", positive=True, hi=LENGTH_MAX_MM),
-        servo_baud=r.integer("servo.baud", lo=7843, hi=1_000_000),
+        servo_baud=_servo_baud(r),
         servo_units_max=units_max,
         servo_range_deg=range_deg,
         servos=tuple(servos),
@@ -342,11 +379,55 @@ def _check_integers(path: Path, data: dict) -> None:
                              f"({node.bit_length()} bits)")
 
 
+def _leaf_keys(data: dict) -> list[str]:
+    """The dotted keys of every value that is not a table, in the file's order."""
+    out, stack = [], [("", data)]
+    while stack:
+        key, node = stack.pop()
+        if isinstance(node, dict):
+            stack.extend(reversed([(f"{key}.{k}" if key else k, v) for k, v in node.items()]))
+        else:
+            out.append(key)
+    return out
+
+
+def _check_known_keys(path: Path, data: dict) -> None:
+    """Refuse keys the loader does not read, each with the nearest known key (the first
+    UNKNOWN_KEYS_NAMED of them; then how many more)."""
+    unknown = [key for key in _leaf_keys(data)
+               if key not in KNOWN_KEYS and not any(k.startswith(key + ".") for k in KNOWN_KEYS)]
+    # (a table given as a value is not unknown: the typed reader says what it expects)
+    if not unknown:
+        return
+    problems = []
+    for key in unknown[:UNKNOWN_KEYS_NAMED]:
+        near = difflib.get_close_matches(key, KNOWN_KEYS, n=1)
+        problems.append(f"{key}: unknown key" + (f" (did you mean {near[0]}?)" if near else ""))
+    more = len(unknown) - UNKNOWN_KEYS_NAMED
+    raise ModelError(f"{path}: " + "; ".join(problems) + (f"; and {more} more unknown keys" if more > 0 else ""))
+
+
 def _link(r: _Reader, key: str, zero_allowed: bool = False) -> float:
     value = r.number(key, nonnegative=zero_allowed, positive=not zero_allowed, hi=LENGTH_MAX_MM)
     if value < LENGTH_MIN_MM and not (zero_allowed and value == 0):
         raise r.fail(key, f"must be {'0 or ' if zero_allowed else ''}at least {LENGTH_MIN_MM} mm, got {value}")
+    if value < LINK_PLAUSIBLE_MM and value != 0:
+        raise r.fail(key, f"{value} mm is not a link length: lengths are in millimetres "
+                          f"({value} m = {value * 1000:g} mm?)")
     return value
+
+
+def _servo_baud(r: _Reader) -> int:
+    """The bus baud: one the AX-12A runs at, 2 Mbaud / (n + 1), within the UART's tolerance."""
+    key = "servo.baud"
+    baud = r.integer(key, lo=7843, hi=1_000_000)
+    rates = {n: AX12_BAUD_CLOCK / (n + 1) for n in range(AX12_BAUD_REGISTER_MAX + 1)}
+    n = min(rates, key=lambda n: abs(rates[n] / baud - 1))
+    if abs(rates[n] / baud - 1) > BAUD_TOLERANCE:
+        raise r.fail(key, f"an AX-12A runs at 2,000,000 / (n + 1) bit/s (Baud Rate register n = 0.."
+                          f"{AX12_BAUD_REGISTER_MAX}); the nearest to {baud}, {rates[n]:.0f} (n = {n}), is "
+                          f"{rates[n] / baud - 1:+.1%} off, beyond the UART's {BAUD_TOLERANCE:.0%} tolerance")
+    return baud
 
 
 def _three(r: _Reader, key: str) -> tuple[float, float, float]:

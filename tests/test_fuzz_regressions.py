@@ -122,7 +122,7 @@ def deadline(seconds: int):
         signal.signal(signal.SIGALRM, old)
 
 
-@pytest.mark.parametrize("value", ["40.28633809204152", "0.04028633809204152"])
+@pytest.mark.parametrize("value", ["40.28633809204152", "4.028633809204152"])
 def test_model_numbers_stay_exact_rationals(tmp_path, value):
     """A timeout of the harness: sp.nsimplify(40.28633809204152) guessed
     5*2**(227/394)*3**(76/197)*5**(111/394)*7**(82/197), and the exact park check (and the

@@ -92,6 +92,83 @@ def test_codegen_cli_reports_model_errors(tmp_path, capsys):
     assert not (tmp_path / "gen").exists()
 
 
+# --- unknown keys and implausible values ----------------------------------------------------
+
+def test_typo_of_a_key_names_the_key_meant(tmp_path):
+    msg = broken(tmp_path, "L3 = 73.5", "L33 = 73.5")
+    assert "geometry.L33: unknown key (did you mean geometry.L3?)" in msg
+
+
+def test_every_unknown_key_is_named(tmp_path):
+    msg = broken(tmp_path, "[geometry]", "[geometryy]")
+    for name in ("L1", "L2", "L3"):
+        assert f"geometryy.{name}: unknown key (did you mean geometry.{name}?)" in msg
+
+
+def test_many_unknown_keys_are_counted(tmp_path):
+    msg = broken(tmp_path, "[mount]", "[junk]\n" + "".join(f"k{i} = {i}\n" for i in range(100)) + "[mount]")
+    assert msg.count("unknown key") == config.UNKNOWN_KEYS_NAMED + 1      # (the last in "N more unknown keys")
+    assert f"and {100 - config.UNKNOWN_KEYS_NAMED} more unknown keys" in msg
+
+
+def test_calibration_keys_may_be_absent(tmp_path):
+    text = BASE
+    for line in ("accel_bias = [0.0, 0.0, 0.0]\n", "accel_scale = [1.0, 1.0, 1.0]\n",
+                 "gyro_bias_dps = [0.0, 0.0, 0.0]\n"):
+        assert line in text
+        text = text.replace(line, "", 1)
+    model, _ = load_text(tmp_path, text)
+    assert model.imu_calibration == config.ImuCalibration()
+
+
+def test_every_other_key_is_required(tmp_path):
+    """The known keys are the committed model's keys; each one but the IMU calibration is
+    reported missing when it is deleted, so none is known without being read."""
+    import tomlkit
+    leaves = []
+    doc = tomllib.loads(BASE)
+    stack = [("", doc)]
+    while stack:
+        prefix, node = stack.pop()
+        for k, v in node.items():
+            (stack.append((f"{prefix}{k}.", v)) if isinstance(v, dict) else leaves.append(f"{prefix}{k}"))
+    assert sorted(leaves) == sorted(config.KNOWN_KEYS)
+    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps"}
+    for key in leaves:
+        doc = tomlkit.parse(BASE)
+        *tables, name = key.split(".")
+        node = doc
+        for t in tables:
+            node = node[t]
+        del node[name]
+        path = tmp_path / "arm.toml"
+        path.write_text(tomlkit.dumps(doc))
+        if key in optional:
+            config.load(path)
+            continue
+        with pytest.raises(config.ModelError, match=re.escape(f"{key}: missing")):
+            config.load(path)
+
+
+# AX-12A e-manual, Baud Rate (address 4): 2,000,000 / (n + 1) bit/s, n = 0..254; 3 % of
+# error is within the UART's tolerance. Its own table: n = 16 for 115200 (117647, -2.1 %).
+@pytest.mark.parametrize("baud", [1_000_000, 500_000, 400_000, 250_000, 200_000, 117_647, 115_200, 57_600,
+                                  9_600])
+def test_bauds_an_ax12a_runs_at_load(tmp_path, baud):
+    model, _ = load_text(tmp_path, BASE.replace("baud = 200000", f"baud = {baud}", 1))
+    assert model.servo_baud == baud
+
+
+@pytest.mark.parametrize("baud", [
+    300_000,     # between n = 5 (333333, +11 %) and n = 6 (285714, -4.8 %)
+    800_000,     # between n = 1 (1000000, +25 %) and n = 2 (666667, -17 %)
+    600_000,     # n = 2: 666667, +11 %; n = 3: 500000, -17 %
+])
+def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
+    msg = broken(tmp_path, "baud = 200000", f"baud = {baud}")
+    assert "servo.baud: " in msg and "2,000,000 / (n + 1)" in msg and "3%" in msg
+
+
 # --- servo, park, link and IMU keys ---------------------------------------------------------
 
 @pytest.mark.parametrize("old, new, key, words", [
@@ -134,6 +211,15 @@ def test_codegen_cli_reports_model_errors(tmp_path, capsys):
     ("follow_window_deg = 90.0", "follow_window_deg = 181.0", "motion.follow_window_deg", "<= 180"),
     ("stretch_margin = 1.0", "stretch_margin = 20.0", "motion.stretch_margin", "<= 13.8"),
     ("stretch_margin = 1.0", "", "motion.stretch_margin", "missing"),
+    # keys the loader does not know
+    ("L3 = 73.5", "L3 = 73.5\nL4 = 20.0", "geometry.L4", "unknown key"),
+    ("[servo.theta3]", "[servo.theta4]\nid = 4\n[servo.theta3]", "servo.theta4.id", "unknown key"),
+    ('kind = "quaternion"', 'kind = "quaternion"\ncomplementary_weight = 0.9', "estimator.complementary_weight",
+     "unknown key"),
+    # link lengths in metres by mistake
+    ("L2 = 65.0", "L2 = 0.065", "geometry.L2", "millimetres"),
+    ("L3 = 73.5", "L3 = 0.0735", "geometry.L3", "millimetres"),
+    ("L1 = 40.0", "L1 = 0.04", "geometry.L1", "millimetres"),
 ])
 def test_bad_new_keys_name_file_and_key(tmp_path, old, new, key, words):
     msg = broken(tmp_path, old, new)

@@ -460,7 +460,8 @@ def test_lead_commands_the_pose_needed_lead_time_ahead(fw, offset_lead, which):
     ("accel_gain = 0.5", "accel_gain = 80.0", "estimator.accel_gain: must be <= 50.0"),
     ("accel_reject_deg = 90.0", "accel_reject_deg = 0.0", "estimator.accel_reject_deg: must be >= 0.1"),
     ("bias_gain = 0.1", "bias_gain = nan", "estimator.bias_gain: must be finite"),
-    ("link_bias_gain = 0.5", "link_bias_gains = 0.5", "estimator.link_bias_gain: missing"),
+    ("link_bias_gain = 0.5", "link_bias_gains = 0.5",
+     "estimator.link_bias_gains: unknown key (did you mean estimator.link_bias_gain?)"),
 ])
 def test_estimator_keys_are_validated(tmp_path, old, new, message):
     text = config.DEFAULT_MODEL.read_text()

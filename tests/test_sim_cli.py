@@ -14,10 +14,11 @@ from uavarm.model import config
 
 
 def test_sim_prints_the_table_and_writes_the_plots(tmp_path, capsys):
-    rc = cli.main(["sim", "bench", "--seconds", "1", "--settle", "1", "--seeds", "2",
+    rc = cli.main(["sim", "bench", "--seconds", "1", "--settle", "1", "--seeds", "2", "--estimator", "complementary",
                    "--set", "estimator.complementary_gyro_weight=0.97", "--plots", str(tmp_path)])
     out = capsys.readouterr().out
     assert rc == 0
+    assert "unreachable" not in out
     lines = [l for l in out.splitlines() if l.startswith("bench tilting")]
     assert len(lines) == 3 and "all 2 seeds" in lines[-1]
     assert "EE RMS mm" in out and "att RMS deg" in out
@@ -34,6 +35,76 @@ def test_sim_prints_the_table_and_writes_the_plots(tmp_path, capsys):
 def test_sim_refuses_bad_input_with_a_reason(argv, msg, capsys):
     assert cli.main(argv + ["--plots", ""]) == 2
     assert msg in capsys.readouterr().err
+
+
+def test_a_key_the_estimator_does_not_read_is_refused(capsys):
+    """The committed model's estimator is the quaternion one with the drone's attitude."""
+    assert config.load().estimator.kind == "quaternion" and config.load().estimator.drone_attitude
+    assert cli.main(["sim", "bench", "--set", "estimator.complementary_gyro_weight=0.98", "--plots", ""]) == 2
+    err = capsys.readouterr().err
+    assert "estimator.complementary_gyro_weight: not used by the quaternion estimator" in err
+    assert cli.main(["sim", "bench", "--estimator", "quaternion", "--set", "estimator.link_gain=0.2",
+                     "--plots", ""]) == 2
+    assert "estimator.link_gain: not used without the drone's attitude" in capsys.readouterr().err
+    assert cli.main(["sim", "bench", "--estimator", "complementary", "--set", "estimator.accel_gain=0.2",
+                     "--plots", ""]) == 2
+    assert "estimator.accel_gain: not used by the complementary estimator" in capsys.readouterr().err
+
+
+def estimates(variant, seconds=3.0):
+    """The firmware's (roll, pitch) estimate every tick on a rocking board."""
+    from uavarm.board import Rocking, SimBoard
+    board = SimBoard(variant.model, lib=(variant.ffi, variant.lib), motion=Rocking(0.2, 0.1, 0.7), record=False)
+    stab = variant.ffi.addressof(board.app, "stab")
+    roll, pitch = variant.ffi.new("float *"), variant.ffi.new("float *")
+    out = []
+    while board.time < seconds:
+        board.run(1 / board.model.sample_rate)
+        variant.lib.stab_attitude(stab, roll, pitch)
+        out.append((roll[0], pitch[0]))
+    return np.array(out)
+
+
+def test_the_refused_keys_change_nothing_and_the_others_do():
+    """What the refusal rests on, in the firmware: the complementary weight changes nothing
+    with the quaternion estimator, and does change the complementary one's estimate."""
+    from uavarm import variants
+    weight = "estimator.complementary_gyro_weight=0.5"
+    assert variants.unused(variants.edits(None, [weight]), config.load().estimator)
+    assert np.array_equal(estimates(variants.build({})), estimates(variants.build(variants.edits(None, [weight]))))
+    complementary = variants.build(variants.edits("complementary"))
+    assert not variants.unused(variants.edits(None, [weight]), complementary.model.estimator)
+    assert not np.array_equal(estimates(complementary),
+                              estimates(variants.build(variants.edits("complementary", [weight]))))
+
+
+def test_a_target_never_reachable_is_named(tmp_path, capsys):
+    """300 mm out is beyond the reach L2 + L3 of the committed model (138.5 mm)."""
+    (tmp_path / "far.toml").write_text('name = "far"\nkind = "bench"\n[arm]\ntarget = [300.0, 0.0, -100.0]\n')
+    assert cli.main(["sim", str(tmp_path / "far.toml"), "--seconds", "1", "--settle", "1", "--preflight", "1",
+                     "--plots", ""]) == 0
+    out = capsys.readouterr().out
+    assert "the target (300.0, 0.0, -100.0) mm is unreachable" in out and "refused it on every tick" in out
+
+
+@pytest.fixture
+def stale_generated(tmp_path, monkeypatch):
+    """generated/ as `make codegen` left it for another version of the model file."""
+    from uavarm import generated
+    for path in generated.GENERATED.iterdir():
+        text = path.read_text()
+        sha = config.load().sha256[:16]
+        assert f"(sha256 {sha})" in text
+        (tmp_path / path.name).write_text(text.replace(f"(sha256 {sha})", "(sha256 0123456789abcdef)"))
+    monkeypatch.setattr(generated, "GENERATED", tmp_path)
+
+
+@pytest.mark.parametrize("argv", [["sim", "hover", "--plots", ""], ["demo"], ["sitl"]])
+def test_code_generated_from_another_model_is_refused(stale_generated, argv, capsys):
+    assert cli.main(argv) == 1
+    captured = capsys.readouterr()
+    assert "run `make codegen`" in captured.err and "0123456789abcdef" in captured.err
+    assert captured.out == ""
 
 
 def test_exported_flight_log_replays(tmp_path, capsys):

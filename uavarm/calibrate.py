@@ -173,7 +173,7 @@ def command(args) -> int:
             arm.next_heartbeat()
             run = {"imu": imu, "mounting": mounting, "servos": servos}[args.what]
             run(arm, path, terminal_ask, confirm, seconds=args.seconds)
-    except (LinkError, CalibrationError, config.ModelError) as exc:
+    except (LinkError, CalibrationError, config.ModelError, OSError) as exc:   # OSError: the port failed
         print(f"error: {exc}", file=sys.stderr)
         print(f"{path}: left as it was", file=sys.stderr)
         return 1

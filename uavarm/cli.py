@@ -4,26 +4,47 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
+from pathlib import Path
+
+DEMO_ENGAGE_S = 1.5        # `uavarm demo`: set position and engage this long after enable
+DEMO_KEEP_ALIVE_S = 0.25   # ... then the set position again at this period
 
 
 def demo(args) -> int:
-    """The simulated board: enable, go to a target on a tilted board, print heartbeats."""
+    """The simulated board: enable, go to a target on a tilted board, print what happens in
+    simulated-time order: the commands sent (->) and the heartbeats received (<-)."""
     from .board import Gravity, SimBoard
-    board = SimBoard(motion=Gravity(math.radians(args.roll), math.radians(args.pitch)))
-    steps = [(0.0, "enable", {"on": 1}), (1.5, "set_position", dict(zip("xyz", args.target))),
-             (1.5, "engage", {"on": 1})]
-    for at, name, fields in steps:
+    _require_current_code()
+    board = SimBoard(motion=Gravity(math.radians(args.roll), math.radians(args.pitch)), record=False)
+    target = dict(zip("xyz", args.target))
+    commands = [(0.0, "enable", {"on": 1}), (DEMO_ENGAGE_S, "set_position", target),
+                (DEMO_ENGAGE_S, "engage", {"on": 1})]
+    t = DEMO_ENGAGE_S + DEMO_KEEP_ALIVE_S
+    while t < args.seconds:      # repeated, unprinted: an engaged arm parks when the link is silent
+        commands.append((t, "keep-alive", target))
+        t += DEMO_KEEP_ALIVE_S
+    shown = -1.0
+
+    def print_heartbeats():
+        nonlocal shown
+        for at, hb in zip(board.heartbeat_times, board.heartbeats):
+            if at > shown:
+                print(f"{at:6.2f} s  <- {_heartbeat_line(hb)}")
+                shown = at
+    for at, name, fields in commands:
+        if at > args.seconds:
+            break
         board.run_until_us(round(at * 1e6))
+        print_heartbeats()
+        if name == "keep-alive":
+            board.send("set_position", **fields)
+            continue
         board.send(name, **fields)
         print(f"{board.time:6.2f} s  -> {name} {fields}")
-    shown = 0
-    while board.time < args.seconds:
-        board.run(0.25)
-        board.send("set_position", **dict(zip("xyz", args.target)))   # keeps the link alive
-        for hb in board.heartbeats[shown:]:
-            print(f"{board.time:6.2f} s  <- {_heartbeat_line(hb)}")
-        shown = len(board.heartbeats)
+    board.run_until_us(round(args.seconds * 1e6))
+    print_heartbeats()
     return 0
 
 
@@ -62,29 +83,92 @@ def link(args) -> int:
     except LinkError as exc:   # (CommandRefused too: the board's reason)
         print(f"error: {exc}", file=sys.stderr)
         return 1
+    except OSError as exc:     # (serial.SerialException too) the port went away mid-command
+        print(f"error: {args.port}: the serial port failed ({exc}): unplugged, or the SITL stopped?",
+              file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         pass
     return 0
 
 
-def main(argv=None) -> int:
+def _require_current_code() -> None:
+    """Stop if generated/ was not generated from the model file the simulation loads."""
+    from . import generated
+    from .model import config
+    generated.check_current(config.load())
+
+
+def _number(ok, what: str):
+    """An argparse type: a finite float for which ok(value) holds."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not (math.isfinite(value) and ok(value)):
+            raise argparse.ArgumentTypeError(f"{what}, got {text}")
+        return value
+    return parse
+
+
+def _integer(lo: int):
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < lo:
+            raise argparse.ArgumentTypeError(f"must be at least {lo}, got {value}")
+        return value
+    return parse
+
+
+FINITE = _number(lambda v: True, "must be a finite number")
+POSITIVE = _number(lambda v: v > 0, "must be a positive number")
+NOT_NEGATIVE = _number(lambda v: v >= 0, "must be a number >= 0")
+
+
+def version() -> str:
+    """The package's version and the firmware's (APP_FIRMWARE_VERSION in app.h)."""
+    from importlib import metadata
+    app_h = Path(__file__).resolve().parents[1] / "firmware_stm32" / "App" / "Inc" / "app.h"
+    try:
+        package = metadata.version("uavarm")
+    except metadata.PackageNotFoundError:
+        package = "(not installed)"
+    try:
+        found = re.search(r"#define APP_FIRMWARE_VERSION 0x([0-9a-fA-F]{6})u", app_h.read_text())
+    except OSError:
+        found = None
+    firmware = ".".join(str(int(found.group(1)[i:i + 2], 16)) for i in (0, 2, 4)) if found else "unknown"
+    return f"uavarm {package} (firmware {firmware})"
+
+
+def parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="uavarm", description="Drone arm toolchain")
+    ap.add_argument("--version", action="version", version=version())
     sub = ap.add_subparsers(dest="command", required=True)
-    sub.add_parser("codegen", help="regenerate generated/ (same options as python -m uavarm.codegen)",
+    sub.add_parser("codegen", help="regenerate generated/ (`uavarm codegen --help` for its options)",
                    add_help=False)
     d = sub.add_parser("demo", help="run the firmware on the simulated board and print its heartbeats")
-    d.add_argument("--target", type=float, nargs=3, default=[60.0, 20.0, -120.0], metavar=("X", "Y", "Z"))
-    d.add_argument("--roll", type=float, default=10.0, help="board tilt, degrees")
-    d.add_argument("--pitch", type=float, default=-5.0, help="board tilt, degrees")
-    d.add_argument("--seconds", type=float, default=4.0)
+    d.add_argument("--target", type=FINITE, nargs=3, default=[60.0, 20.0, -120.0], metavar=("X", "Y", "Z"),
+                   help="set position, mm, level frame at the arm's base (default: %(default)s)")
+    d.add_argument("--roll", type=FINITE, default=10.0, help="board tilt, degrees (default: %(default)s)")
+    d.add_argument("--pitch", type=FINITE, default=-5.0, help="board tilt, degrees (default: %(default)s)")
+    d.add_argument("--seconds", type=POSITIVE, default=4.0,
+                   help=f"simulated seconds to run (default: %(default)s); enable at 0 s, set position and "
+                        f"engage at {DEMO_ENGAGE_S} s, the set position repeated every {DEMO_KEEP_ALIVE_S} s")
     lk = sub.add_parser("link", help="command a board (or a SITL) over its serial port")
     lk.add_argument("port", help="serial device, e.g. /dev/ttyACM0 or the path `uavarm sitl` prints")
     lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor",
                                        "limp", "stiff", "jog"],
                     help="limp: torque off (positions still read), stiff: torque back on, jog J DEG: joint J "
                          "(1-3) to DEG at park speed; service commands, refused while engaged")
-    lk.add_argument("xyz", type=float, nargs="*", metavar="X Y Z", help="goto: target in mm; jog: JOINT DEG")
-    lk.add_argument("--baud", type=int, default=115200, help="ignored by USB CDC; for UART adapters")
+    lk.add_argument("xyz", type=FINITE, nargs="*", metavar="X Y Z",
+                    help="goto: target in mm; jog: JOINT DEG (degrees)")
+    lk.add_argument("--baud", type=_integer(1), default=115200,
+                    help="bit/s, ignored by USB CDC; for UART adapters (default: %(default)s)")
     lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
@@ -94,18 +178,22 @@ def main(argv=None) -> int:
                           "mounting: the IMU's roll and pitch on the base (drone standing level); servos: "
                           "each servo's zero and direction (the arm held at its zero pose, then small jogs)")
     cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")
-    cal.add_argument("--model", default=None, help="model file to update (default model/manipulator.toml)")
-    cal.add_argument("--seconds", type=float, default=2.0, help="seconds of samples per position")
+    cal.add_argument("--model", default=None, help="model file to update (default: model/manipulator.toml)")
+    cal.add_argument("--seconds", type=POSITIVE, default=2.0,
+                     help="seconds of samples per position (default: %(default)s)")
     cal.add_argument("--yes", action="store_true", help="write the result without asking")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
     st.add_argument("scenario", nargs="?", default="level",
                     help="level (default), tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (bench tilting)")
-    st.add_argument("--speed", type=float, default=1.0, help="simulated seconds per real second")
+    st.add_argument("--speed", type=POSITIVE, default=1.0,
+                    help="simulated seconds per real second (default: %(default)s)")
     st.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default="white",
-                    help="the simulated IMU's errors (datasheet: biases and scale errors to calibrate)")
-    st.add_argument("--seed", type=int, default=0, help="draw of the IMU's errors")
+                    help="the simulated IMU's errors (datasheet: biases and scale errors to calibrate; "
+                         "default: %(default)s)")
+    st.add_argument("--seed", type=_integer(0), default=0, help="draw of the IMU's errors (default: %(default)s)")
     st.add_argument("--imu-mounting", default=None, metavar="ROLL,PITCH,YAW",
-                    help="how the simulated IMU really sits on the base (deg), whatever the model file says")
+                    help="how the simulated IMU really sits on the base (deg), whatever the model file says "
+                         "(default: as the model file says)")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
     sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/scenarios.py)")
     sm.add_argument("--show", action="store_true",
@@ -113,29 +201,42 @@ def main(argv=None) -> int:
     sm.add_argument("--estimator", default=None,
                     help="estimator preset: complementary, quaternion, link (default: the model file as it is)")
     sm.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
-                    help="edit a model key for this run, e.g. estimator.complementary_gyro_weight=0.98")
-    sm.add_argument("--seconds", type=float, default=60.0, help="scored seconds per seed")
-    sm.add_argument("--settle", type=float, default=5.0, help="seconds after engage not scored")
-    sm.add_argument("--preflight", type=float, default=10.0,
-                    help="seconds on the ground (still, level, motors off) between power-up and the flight")
-    sm.add_argument("--seeds", type=int, default=1)
-    sm.add_argument("--seed", type=int, default=0, help="first seed")
+                    help="edit a model key for this run, e.g. estimator.accel_gain=0.4 (a key the chosen "
+                         "estimator does not use is refused; repeatable; default: none)")
+    sm.add_argument("--seconds", type=POSITIVE, default=60.0, help="scored seconds per seed (default: %(default)s)")
+    sm.add_argument("--settle", type=NOT_NEGATIVE, default=5.0,
+                    help="seconds after engage not scored (default: %(default)s)")
+    sm.add_argument("--preflight", type=NOT_NEGATIVE, default=10.0,
+                    help="seconds on the ground (still, level, motors off) between power-up and the flight "
+                         "(default: %(default)s)")
+    sm.add_argument("--seeds", type=_integer(1), default=1, help="seeds to run (default: %(default)s)")
+    sm.add_argument("--seed", type=_integer(0), default=0, help="first seed (default: %(default)s)")
     sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,
                     help="IMU error profile (default: the scenario's)")
     sm.add_argument("--link-attitude", choices=["auto", "on", "off"], default="auto",
-                    help="send the drone's attitude over the link (auto: when the firmware fuses it)")
-    sm.add_argument("--poll-us", type=int, default=250, help="simulated main-loop period")
-    sm.add_argument("--jobs", type=int, default=1, help="seeds run in parallel")
-    sm.add_argument("--plots", default="build/sim-plots", help="folder for the PNG plots ('' for none)")
+                    help="send the drone's attitude over the link (auto: when the firmware fuses it; "
+                         "default: %(default)s)")
+    sm.add_argument("--poll-us", type=_integer(10), default=250,
+                    help="simulated main-loop period, microseconds (default: %(default)s)")
+    sm.add_argument("--jobs", type=_integer(1), default=1, help="seeds run in parallel (default: %(default)s)")
+    sm.add_argument("--plots", default="build/sim-plots",
+                    help="folder for the PNG plots ('' for none; default: %(default)s)")
     sm.add_argument("--export-log", default=None, metavar="CSV",
                     help="also write the first seed's drone motion as a flight log (the replay format)")
     ws = sub.add_parser("workspace", help="plot the arm's reachable region (side and top views)")
-    ws.add_argument("--model", default=None, help="model file (default model/manipulator.toml)")
-    ws.add_argument("--out", default="build/workspace.png")
+    ws.add_argument("--model", default=None, help="model file (default: model/manipulator.toml)")
+    ws.add_argument("--out", default="build/workspace.png", help="PNG file to write (default: %(default)s)")
+    return ap
+
+
+def main(argv=None) -> int:
+    """The command; a user error ends it with one line `error: ...` on stderr and exit code 1
+    (argparse's own: 2), never a traceback."""
+    ap = parser()
     args, rest = ap.parse_known_args(argv)
     if args.command == "codegen":
         from .codegen.generate import main as codegen_main
-        return codegen_main(rest)
+        return codegen_main(rest, prog="uavarm codegen")
     if rest:
         ap.error(f"unrecognized arguments: {' '.join(rest)}")
     if args.command == "link":
@@ -144,15 +245,30 @@ def main(argv=None) -> int:
             ap.error("goto takes exactly X Y Z, jog takes JOINT DEG; the other actions take none")
         if args.action == "jog" and args.xyz[0] not in (1, 2, 3):
             ap.error(f"jog: joint must be 1, 2 or 3, got {args.xyz[0]:g}")
+    if args.command == "sitl":
+        from . import sitl
+        try:
+            sitl.motion_of(args.scenario)
+            args.imu_mounting = sitl.angles_of(args.imu_mounting) if args.imu_mounting else None
+        except ValueError as exc:
+            ap.error(str(exc))
+    try:
+        return run(args)
+    except (ValueError, OSError) as exc:   # model, scenario and generated-code errors; files
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("stopped", file=sys.stderr)
+        return 130
+
+
+def run(args) -> int:
+    if args.command == "link":
         return link(args)
     if args.command == "sim":
         from .sim_report import sim_command
-        if args.seconds <= 0 or args.seeds < 1 or args.settle < 0 or args.preflight < 0 or args.poll_us < 10:
-            ap.error("--seconds must be positive, --seeds at least 1, --settle and --preflight not negative, "
-                     "--poll-us >= 10")
         return sim_command(args)
     if args.command == "workspace":
-        from pathlib import Path
         from .model import config
         from .workspace import plot
         try:
@@ -166,17 +282,11 @@ def main(argv=None) -> int:
         return 0
     if args.command == "calibrate":
         from .calibrate import command
-        if not args.seconds > 0:
-            ap.error("--seconds must be positive")
         return command(args)
     if args.command == "sitl":
         from . import sitl
-        try:
-            sitl.motion_of(args.scenario)
-            mounting = sitl.angles_of(args.imu_mounting) if args.imu_mounting else None
-        except ValueError as exc:
-            ap.error(str(exc))
-        return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=mounting)
+        _require_current_code()
+        return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting)
     return demo(args)
 
 

@@ -27,6 +27,12 @@ from collections import deque
 from . import llcp, messages
 from .messages import fault_names, refusal_reason
 
+try:
+    from termios import error as _TermiosError
+except ImportError:      # (not POSIX)
+    class _TermiosError(Exception):
+        pass
+
 # a command is judged on the heartbeats that follow it: the first may predate it
 CONFIRM_HEARTBEATS = 2
 # bytes taken from the port in one poll at most (about 400 heartbeats)
@@ -200,7 +206,10 @@ class ArmLink:
 
     def send(self, name: str, **fields) -> None:
         self.serial.write(llcp.encode(messages.encode(name, **fields)))
-        self.serial.flush()
+        try:
+            self.serial.flush()
+        except _TermiosError as exc:     # pyserial lets tcdrain's error through: a port that went away
+            raise OSError(*exc.args) from None
 
     def _confirm(self, ok, why) -> dict:
         """Wait for a heartbeat satisfying ok(hb); CommandRefused with why(hb) otherwise."""

@@ -70,6 +70,7 @@ class Run:
     scored: np.ndarray               # bool (n,)
     flight: drone.Flight
     out_of_reach_ticks: int = 0
+    unreachable_ticks: int = 0       # the set position refused as unreachable (from a level base)
     link_messages: int = 0
     faults: list = field(default_factory=list)
     last_heartbeat: dict = field(default_factory=dict)
@@ -193,7 +194,7 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     engage_us = round((st.preflight + st.engage_at) * US)
     next_alive = engage_us
     rec_t, rec_q, rec_true, rec_est = [], [], [], []
-    out_of_reach = n_link = 0
+    out_of_reach = unreachable = n_link = 0
     faults = set()
     board.send("enable", on=1)
     engaged = False
@@ -227,6 +228,7 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
             rec_true.append(motion.attitude(board.time))
             rec_est.append((roll_p[0], pitch_p[0]))
             out_of_reach += bool(board.app.out_of_reach)
+            unreachable += bool(board.app.unreachable)
             for hb in board.heartbeats[-1:]:
                 if hb["faults"]:
                     faults.add(hb["faults"])
@@ -235,4 +237,4 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     err = ee_error(model, q, true_att[:, 0], true_att[:, 1], scenario.target)
     t = np.array(rec_t) - st.preflight - st.engage_at
     return Run(scenario.name, seed, label, t, err, true_att, np.array(rec_est), t >= st.settle,
-               flight, out_of_reach, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {})
+               flight, out_of_reach, unreachable, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {})

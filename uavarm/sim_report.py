@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import scenarios, sim, variants
+from . import generated, scenarios, sim, variants
 
 REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
 REPORT_ESTIMATORS = ("complementary", "quaternion", "link")
@@ -36,6 +36,8 @@ class Row:
     att_max: float
     out_of_reach: int
     wall_s: float
+    unreachable: int = 0             # ticks with the set position refused as unreachable
+    ticks: int = 0                   # ticks recorded (from engage)
 
 
 def summarise(runs: list[sim.Run], wall_s: float = 0.0) -> Row:
@@ -46,7 +48,8 @@ def summarise(runs: list[sim.Run], wall_s: float = 0.0) -> Row:
     m = runs[0].metrics()
     return Row(runs[0].scenario, runs[0].label, len(runs), m["seconds"], float(np.sqrt(np.mean(e ** 2))),
                float(np.percentile(e, 95)), float(e.max()), float(np.sqrt(np.mean(a ** 2))), float(a.max()),
-               sum(r.out_of_reach_ticks for r in runs), wall_s)
+               sum(r.out_of_reach_ticks for r in runs), wall_s, sum(r.unreachable_ticks for r in runs),
+               sum(len(r.t) for r in runs))
 
 
 HEADER = ("scenario", "estimator", "seeds", "s each", "EE RMS mm", "EE p95 mm", "EE max mm",
@@ -56,6 +59,17 @@ HEADER = ("scenario", "estimator", "seeds", "s each", "EE RMS mm", "EE p95 mm", 
 def cells(r: Row) -> tuple:
     return (r.scenario, r.label, str(r.seeds), f"{r.seconds:.0f}", f"{r.rms:.2f}", f"{r.p95:.2f}",
             f"{r.max:.2f}", f"{r.att_rms:.2f}", f"{r.att_max:.2f}", str(r.out_of_reach))
+
+
+def notes(r: Row, target) -> list[str]:
+    """What the table cannot say: a set position the firmware refused as unreachable, so the
+    error is the distance from where the arm stayed to a point it never went for."""
+    if not r.unreachable:
+        return []
+    when = "on every tick" if r.unreachable == r.ticks else f"on {r.unreachable} of {r.ticks} ticks"
+    return [f"{r.scenario}, {r.label}: the target {tuple(target)} mm is unreachable (outside the reach, in the "
+            f"body or a leg, from a level base): the firmware refused it {when}, the arm stayed where it was and "
+            f"the error is its distance from the target; choose a reachable one (`uavarm workspace`)"]
 
 
 def text_table(rows: list[Row]) -> str:
@@ -168,7 +182,7 @@ def main(argv=None) -> int:
     try:
         changes = build_variants(args.estimators, args.sets)
         loaded = {name: scenarios.load(name) for name in args.scenarios}
-    except (variants.VariantError, scenarios.ScenarioError) as exc:
+    except (variants.VariantError, scenarios.ScenarioError, generated.StaleCode) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     settings = replace(sim.Settings(), seconds=args.seconds)
@@ -176,16 +190,19 @@ def main(argv=None) -> int:
             for s in args.scenarios for e in args.estimators for seed in range(args.seeds)]
     t0 = time.monotonic()
     results = run_jobs(jobs, args.jobs)
-    rows, k = [], 0
+    rows, remarks, k = [], [], 0
     plots = args.out / "plots"
     for s in args.scenarios:
         for e in args.estimators:
             group = results[k:k + args.seeds]
             k += args.seeds
             rows.append(summarise([r for r, _ in group], sum(w for _, w in group)))
+            remarks += notes(rows[-1], loaded[s].target)
             plot_run(group[0][0], plots)
     text = text_table(rows)
     print(text)
+    for line in remarks:
+        print(line)
     args.out.mkdir(parents=True, exist_ok=True)
     settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
                      f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
@@ -196,7 +213,7 @@ def main(argv=None) -> int:
     md = ["# Closed-loop simulator report", "", "Command: `make sim-report` "
           f"(`python -m uavarm.sim_report {' '.join(argv or sys.argv[1:])}`)", "", settings_line, "",
           "End-effector error |e| in the gravity-aligned, heading-following frame, pooled over the seeds; "
-          "attitude error = |estimate - truth| of (roll, pitch).", "", markdown_table(rows), "",
+          "attitude error = |estimate - truth| of (roll, pitch).", "", markdown_table(rows), "", *remarks,
           f"Wall time: {time.monotonic() - t0:.0f} s with {args.jobs} workers. Plots: `plots/`.", ""]
     (args.out / "report.md").write_text("\n".join(md))
     print(f"\nwrote {args.out / 'report.md'} and {plots}/")
@@ -217,6 +234,9 @@ def sim_command(args) -> int:
             print(scenarios.dump(scenario), end="")
             return 0
         changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
+        ignored = variants.unused(variants.edits(None, args.sets), variants.build(changes).model.estimator)
+        if ignored:
+            raise variants.VariantError("--set " + "; ".join(ignored))
     except (variants.VariantError, scenarios.ScenarioError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -240,6 +260,8 @@ def sim_command(args) -> int:
           f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}; scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))
+    for line in notes(rows[-1], scenario.target):
+        print(line)
     if getattr(args, "export_log", None):
         scenarios.write_csv(sim.scenario_flight(scenario, args.seed, settings), Path(args.export_log))
         print(f"wrote {args.export_log} (replay it with a scenario file: kind = \"replay\", "

@@ -29,8 +29,34 @@ PRESETS: dict[str, dict[str, object]] = {
 }
 
 
+# Model keys only one estimator reads (firmware_stm32/App/Src/stabiliser.c): the complementary
+# filter on the filtered gyro; the quaternion estimator on the raw gyro, with its gains, gates
+# and bias clamp; the drone's attitude over the link only when it is fused.
+COMPLEMENTARY_ONLY = ("estimator.complementary_gyro_weight", "filters.gyro.cutoff", "filters.gyro.order")
+QUATERNION_ONLY = ("estimator.accel_gain", "estimator.bias_gain", "estimator.align_accel_gain",
+                   "estimator.align_bias_gain", "estimator.accel_reject_g", "estimator.accel_reject_deg",
+                   "estimator.gyro_bias_max_dps")
+LINK_ONLY = ("estimator.link_gain", "estimator.link_bias_gain", "estimator.link_delay_min",
+             "estimator.link_delay_max", "estimator.link_timeout")
+
+
 class VariantError(ValueError):
     """An edit the model file cannot take."""
+
+
+def unused(keys, estimator: config.Estimator) -> list[str]:
+    """Why each of `keys` changes nothing in the firmware of this estimator (none: all count)."""
+    out = []
+    for key in keys:
+        if key in COMPLEMENTARY_ONLY and estimator.kind != "complementary":
+            out.append(f"{key}: not used by the {estimator.kind} estimator (only by the complementary one: "
+                       f"--estimator complementary)")
+        elif key in QUATERNION_ONLY and estimator.kind != "quaternion":
+            out.append(f"{key}: not used by the {estimator.kind} estimator (only by the quaternion one: "
+                       f"--estimator quaternion or link)")
+        elif key in LINK_ONLY and not estimator.drone_attitude:
+            out.append(f"{key}: not used without the drone's attitude over the link (--estimator link)")
+    return out
 
 
 def parse_value(text: str):
@@ -113,8 +139,10 @@ class Variant:
 def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Variant:
     """Generate and build the firmware of the edited model (cached by content)."""
     if not changes and Path(base) == config.DEFAULT_MODEL:
+        model = config.load(base)
+        firmware.generated.check_current(model)     # generated/ is this model's (make codegen)
         ffi, lib = firmware.default()
-        return Variant(config.load(base), ffi, lib, {}, firmware.generated.GENERATED)
+        return Variant(model, ffi, lib, {}, firmware.generated.GENERATED)
     text = Path(base).read_text()
     for key, value in changes.items():
         text = edit_text(text, key, value, str(base))
