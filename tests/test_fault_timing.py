@@ -1,0 +1,208 @@
+"""Each timing figure of the README's fault table pinned by behaviour: the figures below are
+written out by hand from the README, never read from the build, and each test fails if the
+firmware's constant moves by one step either way (one tick for what is counted in ticks,
+one microsecond or millisecond for what is timed in them).
+
+| README figure | test |
+|---|---|
+| the IMU: no usable sample for 5 ticks | test_imu_fault_after_five_stale_ticks |
+| the IMU set up again every second | test_faulty_imu_is_set_up_again_after_one_second |
+| link silent for 1 s | test_link_silence_parks_after_one_second |
+| a partial LLCP frame idle 50 ms is dropped | test_partial_frame_is_dropped_after_the_frame_gap |
+| servo tracking: more than 8 units off, 0.25 s | test_tracking_fault_after_a_quarter_second |
+| a servo read unanswered after one retry | test_servo_timeout_after_one_retry |
+| tick late: no tick for 1.5 periods | test_late_tick_is_run_from_the_clock_at_one_and_a_half_periods |
+| clock still for 3 ticks | test_stalled_clock_cuts_power_after_three_ticks |
+"""
+import pytest
+
+from invariants import Invariants
+from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, make_board, ready, servo_c
+from test_fault_injection import TARGET, engaged_board, set_position
+from uavarm import ax12_sim, llcp, messages
+from uavarm.board import SimBoard, baud_register
+
+# The README's figures, by hand.
+TICK_US = 10_000                 # 100 Hz sample rate
+IMU_STALE_TICKS = 5
+IMU_RETRY_S = 1.0
+LINK_SILENCE_US = 1_000_000
+FRAME_GAP_MS = 50
+TRACK_TOL_UNITS = 8
+TRACK_FAULT_US = 250_000
+SERVO_READ_RETRIES = 1
+TICK_LATE_US = 15_000            # 1.5 periods
+CLOCK_STALL_TICKS = 3
+
+
+def step_until(board, cond, limit_s, dt_us=None):
+    """Main-loop passes until cond(); the number of passes, or None."""
+    for n in range(round(limit_s * 1e6 / (dt_us or board.poll_us))):
+        if cond():
+            return n
+        board.step(dt_us or board.poll_us)
+    return None
+
+
+# ---------------------------------------------------------------- IMU
+
+@pytest.mark.parametrize("lost", [IMU_STALE_TICKS - 1, IMU_STALE_TICKS])
+def test_imu_fault_after_five_stale_ticks(lost):
+    """The IMU stops answering for exactly `lost` tick reads while engaged: 4 leave the arm
+    engaged with no imu fault at any moment; the 5th makes it an IMU fault and the arm
+    disengages."""
+    board, _ = engaged_board()
+    errors = board.app.imu_errors
+    board.hp.imu_present = False
+    flagged = False
+    while board.app.imu_errors < errors + lost:
+        board.step(board.poll_us)
+        flagged |= bool(board.lib.app_faults(board.app) & FAULT["imu"])
+    board.hp.imu_present = True
+    for _ in range(2 * TICK_US // board.poll_us):
+        board.step(board.poll_us)
+        flagged |= bool(board.lib.app_faults(board.app) & FAULT["imu"])
+    assert flagged == (lost >= IMU_STALE_TICKS)
+    assert bool(board.app.engaged) == (lost < IMU_STALE_TICKS)
+
+
+def test_faulty_imu_is_set_up_again_after_one_second():
+    """A brown-out leaves the MPU-6050 asleep: the chip is woken one second after the tick
+    that made it an IMU fault (to the tick)."""
+    board, _ = engaged_board()
+    board.imu.power_on()
+    assert step_until(board, lambda: board.lib.app_faults(board.app) & FAULT["imu"], 0.2) is not None
+    t_fault = board.time
+    assert step_until(board, lambda: not board.imu.asleep, 1.5) is not None
+    assert abs((board.time - t_fault) - IMU_RETRY_S) <= 0.5 * TICK_US / 1e6
+
+
+# ---------------------------------------------------------------- link
+
+def test_link_silence_parks_after_one_second():
+    """No frame after the last set_position: still engaged 1 s after it, disengaged with
+    link_lost within one main-loop pass after that."""
+    board, _ = engaged_board()
+    set_position(board, TARGET)
+    board.step(board.poll_us)
+    last = board.app.last_frame_us
+    assert step_until(board, lambda: not board.app.engaged, 1.5) is not None
+    silent_us = (board.hp.now_us - last) & 0xFFFFFFFF
+    assert LINK_SILENCE_US < silent_us <= LINK_SILENCE_US + board.poll_us
+    assert board.app.link_lost
+
+
+@pytest.mark.parametrize("idle_ms, kept", [(FRAME_GAP_MS, True), (FRAME_GAP_MS + 1, False)])
+def test_partial_frame_is_dropped_after_the_frame_gap(idle_ms, kept):
+    """Half a frame, then the rest `idle_ms` later (whole milliseconds of the board's clock):
+    after 50 ms the frame is still taken, after 51 it is dropped (a timeout)."""
+    board = SimBoard(MODEL)
+    board.run(0.1)
+    frame = llcp.encode(messages.encode("engage", on=0))
+    ok, timeouts = board.app.link.frames_ok, board.app.link.timeouts
+    board.send_bytes(frame[:3])
+    board.run(idle_ms / 1000)
+    board.send_bytes(frame[3:])
+    board.run(0.002)
+    assert (board.app.link.frames_ok - ok, board.app.link.timeouts - timeouts) == ((1, 0) if kept else (0, 1))
+
+
+# ---------------------------------------------------------------- servos
+
+def tracking_watch(app_lib):
+    ffi, lib = app_lib
+    track, bus = ffi.new("track_t *"), ffi.new("sbus_t *")
+    lib.track_reset(track)
+    return ffi, lib, track, bus
+
+
+def reading(lib, track, bus, t_us, pos, goal=500, speed=100, servo=0):
+    """One status reading of `servo` at t_us: the shaft at pos, goal and speed sent."""
+    bus.goal[servo], bus.speed[servo] = goal, speed
+    bus.servo[servo].present_position = pos
+    bus.servo[servo].reads += 1
+    bus.status_reads += 1
+    bus.last_read = servo
+    return lib.track_update(track, bus, t_us)
+
+
+@pytest.fixture(scope="module")
+def app_lib():
+    from uavarm import firmware
+    return firmware.default()
+
+
+def test_tracking_fault_after_a_quarter_second(app_lib):
+    """A shaft standing still 9 units from its goal: the fault stands once its readings
+    have not tracked for 0.25 s in a row, to the microsecond; 8 units off is tracking."""
+    _, lib, track, bus = tracking_watch(app_lib)
+    assert not reading(lib, track, bus, 0, 500 - TRACK_TOL_UNITS - 1)
+    assert not reading(lib, track, bus, TRACK_FAULT_US - 1, 500 - TRACK_TOL_UNITS - 1)
+    assert reading(lib, track, bus, TRACK_FAULT_US, 500 - TRACK_TOL_UNITS - 1)
+    _, lib, track, bus = tracking_watch(app_lib)
+    for k in range(60):
+        assert not reading(lib, track, bus, k * TICK_US, 500 - TRACK_TOL_UNITS)
+
+
+class ShyServo(ax12_sim.AX12):
+    """An AX-12A that leaves the next `skip` READ instructions unanswered."""
+    skip = 0
+
+    def _answers(self, inst):
+        if inst == ax12_sim.INST_READ and self.skip > 0:
+            self.skip -= 1
+            return False
+        return super()._answers(inst)
+
+
+@pytest.mark.parametrize("missed", [SERVO_READ_RETRIES, SERVO_READ_RETRIES + 1])
+def test_servo_timeout_after_one_retry(missed):
+    """Servo 2 leaves `missed` reads in a row unanswered: one is made up by the retry (no
+    servo_timeout at any moment); two make it a timeout."""
+    servos = [(ShyServo if k == 1 else ax12_sim.AX12)(s.id, position=float(round(PARK_UNITS[k])),
+                                                    table={"baud_rate": baud_register(MODEL.servo_baud)})
+              for k, s in enumerate(MODEL.servos)]
+    board = SimBoard(MODEL, servos=servos)
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.0) is not None
+    board.bus.servo(IDS[1]).skip = missed
+    failed = False
+    for _ in range(round(0.2 * 1e6 / board.poll_us)):
+        board.step(board.poll_us)
+        failed |= bool(servo_c(board, 1).failed)
+    assert board.bus.servo(IDS[1]).skip == 0
+    assert failed == (missed > SERVO_READ_RETRIES)
+
+
+# ---------------------------------------------------------------- the tick and the clock
+
+def test_late_tick_is_run_from_the_clock_at_one_and_a_half_periods():
+    """The tick interrupt stops: each tick is then run from the clock at the first main-loop
+    pass after 1.5 periods have passed since the last (main-loop passes 1 us apart near
+    that moment, so one microsecond either way shows)."""
+    board, _ = engaged_board()
+    board.tick_interrupt = False
+    runs = []
+    for _ in range(3):
+        last = board.app.last_tick_us
+        since = lambda: (board.hp.now_us - last) & 0xFFFFFFFF     # noqa: E731
+        while since() < TICK_LATE_US - 2 * board.poll_us:
+            board.step(board.poll_us)
+        assert board.app.last_tick_us == last
+        assert step_until(board, lambda: board.app.last_tick_us != last, 0.001, dt_us=1) is not None
+        runs.append((board.app.last_tick_us - last) & 0xFFFFFFFF)
+    assert runs == [TICK_LATE_US + 1] * 3      # the watch saw 1.5 periods; the next pass ran it
+    assert board.app.ticks_late >= 3
+
+
+def test_stalled_clock_cuts_power_after_three_ticks():
+    """The microsecond clock stops between two ticks: the first tick after sees it moved
+    from the tick before; the next three see it still, and the third cuts the servo
+    supply."""
+    board, _ = engaged_board()
+    board.step(TICK_US // 2)
+    board.clock_frozen = True
+    ticks = board.app.ticks_run
+    assert step_until(board, lambda: not board.servo_power, 0.2) is not None
+    assert board.app.ticks_run - ticks == 1 + CLOCK_STALL_TICKS
