@@ -22,12 +22,17 @@ def gen():
     return generated.default()
 
 
+def skip_unless_ci(missing: str, how: str):
+    """A tool a test needs is missing: skipped on a developer machine, a failure in CI (CI set)."""
+    if os.environ.get("CI"):
+        pytest.fail(f"{missing} missing in CI: {how}")
+    pytest.skip(f"{missing} not installed: {how}")
+
+
 def require_arm_toolchain():
     """The target checks may only be skipped on a developer machine, never in CI."""
     if shutil.which("arm-none-eabi-gcc") is None:
-        if os.environ.get("CI"):
-            pytest.fail("arm-none-eabi-gcc missing in CI: .ci/run must install gcc-arm-none-eabi")
-        pytest.skip("arm-none-eabi-gcc not installed (apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)")
+        skip_unless_ci("arm-none-eabi-gcc", "apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi")
 
 
 def require_ros():
@@ -80,3 +85,12 @@ def require_clang_fuzzer():
         if os.environ.get("CI"):
             pytest.fail(f"{missing} missing in CI: {how}")
         pytest.skip(f"{missing} not installed: {how}")
+
+
+def pytest_report_header(config):
+    """The hypothesis seed of this run (pyproject.toml sets one; --hypothesis-seed=N for another)."""
+    return f"hypothesis seed: {config.getoption('hypothesis_seed', None)}"
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    terminalreporter.write_line(pytest_report_header(config))
