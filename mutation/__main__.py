@@ -23,23 +23,26 @@ def chosen(args):
     for t in targets:
         digest = file_digest(t.path)
         for k, mu in enumerate(target_mutants(t)):
-            if k % args.every == args.offset % args.every:
+            if k % args.every == args.offset % args.every and (not args.only or args.only in mu.id):
                 work.append((t, mu, digest))
     return targets, work
 
 
-def run_all(work, results: Results, jobs: int, timeout: float) -> None:
+def run_all(work, results: Results, jobs: int, timeout: float, again: str = "") -> None:
+    """Runs each mutant of `work` without a result (again="survivors": also the survivors;
+    again="all": every one)."""
     todo: queue.Queue = queue.Queue()
     for item in work:
-        if results.get(item[1].id, item[2]) is None:
+        rec = results.get(item[1].id, item[2])
+        if rec is None or again == "all" or (again == "survivors" and rec["status"] == "survived"):
             todo.put(item)
     total = todo.qsize()
     print(f"{len(work)} mutants, {len(work) - total} already in {results.path.relative_to(ROOT)}, {total} to run "
           f"on {jobs} job(s)", flush=True)
     counter = iter(range(1, total + 1))
 
-    def loop(index: int) -> None:
-        worker = Worker(index, BASE, timeout)
+    def loop() -> None:
+        worker = Worker(BASE, timeout)
         worker.prepare()
         while True:
             try:
@@ -51,7 +54,7 @@ def run_all(work, results: Results, jobs: int, timeout: float) -> None:
                          "seconds": round(out.seconds, 1), "detail": out.detail})
             print(f"[{next(counter)}/{total}] {out.status:9} {out.seconds:5.1f} s  {mu.id}", flush=True)
 
-    threads = [threading.Thread(target=loop, args=(i,)) for i in range(jobs)]
+    threads = [threading.Thread(target=loop) for _ in range(jobs)]
     for th in threads:
         th.start()
     for th in threads:
@@ -92,8 +95,11 @@ def main(argv=None) -> int:
     ap.add_argument("--target", action="append", help="run only targets whose name contains this (repeatable)")
     ap.add_argument("--every", type=int, default=1, help="a representative subset: every K-th mutant of each target")
     ap.add_argument("--offset", type=int, default=0, help="which of the K (with --every)")
+    ap.add_argument("--only", help="run only mutants whose id contains this text")
     ap.add_argument("--results", type=Path, default=BASE / "results.jsonl")
     ap.add_argument("--timeout", type=float, default=300.0, help="seconds before a mutant's test run counts as a hang")
+    ap.add_argument("--again", choices=("survivors", "all"), default="",
+                    help="run the survivors (after the tests were strengthened), or all chosen, again")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--table", action="store_true",
                     help="print the table of every mutant with a result in the results file, run nothing")
@@ -109,7 +115,7 @@ def main(argv=None) -> int:
     results = Results(args.results.resolve())
     if not args.table:
         t0 = time.monotonic()
-        run_all(work, results, args.jobs, args.timeout)
+        run_all(work, results, args.jobs, args.timeout, args.again)
         print(f"done in {time.monotonic() - t0:.0f} s")
     print(score_table(targets, work, results))
     return 0

@@ -29,7 +29,7 @@ TARGETS = (
     Target("kin_check_joints (model: limits, body, legs)", "model/collision.py",
            (("py", "body_clear"), ("py", "leg_planes"), ("py", "near_leg"), ("py", "_near_leg_angle"),
             ("py", "legs_clear")),
-           (SAFETY_LAYERS, "tests/test_collision.py"), regenerate=True),
+           (SAFETY_LAYERS, "tests/test_collision.py", "tests/test_motion_kinematics.py"), regenerate=True),
     Target("kin_check_joints (model: joint limits)", "model/kinematics.py", (("py", "joint_limits_ok"),),
            (SAFETY_LAYERS, "tests/test_collision.py"), regenerate=True),
     Target("servo_joints_to_units (template)", "templates/servo_map.c.j2",

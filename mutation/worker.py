@@ -6,6 +6,8 @@ The copy holds the files git knows of (tracked and new, not ignored) and imports
 their folders as the editable install maps them), so the tests run against its files."""
 from __future__ import annotations
 
+import fcntl
+import itertools
 import os
 import shutil
 import subprocess
@@ -35,8 +37,19 @@ def tree_files(root: Path = ROOT) -> list[str]:
 
 
 class Worker:
-    def __init__(self, index: int, base: Path, timeout: float):
-        self.dir = base / f"w{index}"
+    """Takes the first of base/w0, w1, ... that no other worker (of this run or another)
+    holds, and holds it while it lives."""
+
+    def __init__(self, base: Path, timeout: float):
+        for k in itertools.count():
+            self.dir = base / f"w{k}"
+            self.dir.mkdir(parents=True, exist_ok=True)
+            self._lock = (self.dir / ".lock").open("w")
+            try:
+                fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                break
+            except BlockingIOError:
+                self._lock.close()
         self.timeout = timeout
         self.env = dict(os.environ, PYTHONPATH=str(self.dir), PYTHONDONTWRITEBYTECODE="1")
         self.env.pop("CI", None)

@@ -17,7 +17,7 @@ one microsecond or millisecond for what is timed in them).
 import pytest
 
 from invariants import Invariants
-from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, make_board, ready, servo_c
+from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, ready, servo_c
 from test_fault_injection import TARGET, engaged_board, set_position
 from uavarm import ax12_sim, llcp, messages
 from uavarm.board import SimBoard, baud_register
