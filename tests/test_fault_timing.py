@@ -10,6 +10,7 @@ one microsecond or millisecond for what is timed in them).
 | link silent for 1 s | test_link_silence_parks_after_one_second |
 | a partial LLCP frame idle 50 ms is dropped | test_partial_frame_is_dropped_after_the_frame_gap |
 | servo tracking: more than 8 units off, 0.25 s | test_tracking_fault_after_a_quarter_second |
+| ... moving toward it at less than a quarter of what its speed allows | test_tracking_needs_a_quarter_of_what_the_speed_allows |
 | a servo read unanswered after one retry | test_servo_timeout_after_one_retry |
 | tick late: no tick for 1.5 periods | test_late_tick_is_run_from_the_clock_at_one_and_a_half_periods |
 | clock still for 3 ticks | test_stalled_clock_cuts_power_after_three_ticks |
@@ -142,6 +143,25 @@ def test_tracking_fault_after_a_quarter_second(app_lib):
     _, lib, track, bus = tracking_watch(app_lib)
     for k in range(60):
         assert not reading(lib, track, bus, k * TICK_US, 500 - TRACK_TOL_UNITS)
+
+
+# AX-12A e-Manual: Moving Speed 0.111 rpm per unit; 1023 position units over 300 deg
+UNITS_PER_S_PER_SPEED = 0.111 * 360 / 60 * 1023 / 300
+
+
+@pytest.mark.parametrize("dt_us, tracking", [(17_547, True), (17_701, False)])
+def test_tracking_needs_a_quarter_of_what_the_speed_allows(app_lib, dt_us, tracking):
+    """A shaft 100 units from its goal comes 1 unit nearer at each reading, at Moving Speed
+    100: readings 17.547 ms apart, a quarter of what the speed allows is 0.996 units, so it
+    tracks for ever; 17.701 ms apart it is 1.005 units, so it does not, and the fault stands
+    after 0.25 s."""
+    for dt, below in ((17_547, True), (17_701, False)):
+        assert (0.25 * 100 * UNITS_PER_S_PER_SPEED * dt * 1e-6 < 1) == below
+    _, lib, track, bus = tracking_watch(app_lib)
+    fault = False
+    for k in range(40):
+        fault |= bool(reading(lib, track, bus, k * dt_us, 400 + k, goal=500, speed=100))
+    assert fault == (not tracking)
 
 
 class ShyServo(ax12_sim.AX12):
