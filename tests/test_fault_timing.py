@@ -9,7 +9,7 @@ one microsecond or millisecond for what is timed in them).
 | the IMU set up again every second | test_faulty_imu_is_set_up_again_after_one_second |
 | link silent for 1 s | test_link_silence_parks_after_one_second |
 | a partial LLCP frame idle 50 ms is dropped | test_partial_frame_is_dropped_after_the_frame_gap |
-| servo tracking: more than 8 units off, 0.25 s | test_tracking_fault_after_a_quarter_second |
+| servo tracking: more than 8 units off, 0.25 s | test_tracking_fault_after_a_quarter_second, test_tracking_counts_from_the_last_reading_that_tracked |
 | ... moving toward it at less than a quarter of what its speed allows | test_tracking_needs_a_quarter_of_what_the_speed_allows |
 | a servo read unanswered after one retry | test_servo_timeout_after_one_retry |
 | tick late: no tick for 1.5 periods | test_late_tick_is_run_from_the_clock_at_one_and_a_half_periods |
@@ -134,15 +134,34 @@ def app_lib():
 
 
 def test_tracking_fault_after_a_quarter_second(app_lib):
-    """A shaft standing still 9 units from its goal: the fault stands once its readings
-    have not tracked for 0.25 s in a row, to the microsecond; 8 units off is tracking."""
+    """A shaft on its goal, then standing still 9 units from it: the fault stands once its
+    readings have not tracked for 0.25 s since the last one that did, to the microsecond;
+    8 units off is tracking."""
+    off = 500 - TRACK_TOL_UNITS - 1
     _, lib, track, bus = tracking_watch(app_lib)
-    assert not reading(lib, track, bus, 0, 500 - TRACK_TOL_UNITS - 1)
-    assert not reading(lib, track, bus, TRACK_FAULT_US - 1, 500 - TRACK_TOL_UNITS - 1)
-    assert reading(lib, track, bus, TRACK_FAULT_US, 500 - TRACK_TOL_UNITS - 1)
+    assert not reading(lib, track, bus, 0, 500)
+    assert not reading(lib, track, bus, TICK_US, 500)
+    assert not reading(lib, track, bus, TICK_US + TRACK_FAULT_US - 1, off)
+    assert reading(lib, track, bus, TICK_US + TRACK_FAULT_US, off)
     _, lib, track, bus = tracking_watch(app_lib)
     for k in range(60):
         assert not reading(lib, track, bus, k * TICK_US, 500 - TRACK_TOL_UNITS)
+
+
+def test_tracking_counts_from_the_last_reading_that_tracked(app_lib):
+    """A shaft that held its goal and slips 10 units away between two readings, then stays:
+    the fault stands 0.25 s after the last reading on the goal, not later."""
+    _, lib, track, bus = tracking_watch(app_lib)
+    faults = [reading(lib, track, bus, k * TICK_US, 500 if k < 2 else 490) for k in range(30)]
+    assert faults.index(True) == 1 + TRACK_FAULT_US // TICK_US
+
+
+def test_the_first_reading_is_not_judged(app_lib):
+    """The first reading after a reset (1 s after it, far below its goal) has nothing to be
+    compared with: no fault, and the next ones, coming nearer at full speed, track."""
+    _, lib, track, bus = tracking_watch(app_lib)
+    for k in range(30):
+        assert not reading(lib, track, bus, 1_000_000 + k * TICK_US, 20 + 2 * k, goal=900, speed=100)
 
 
 # AX-12A e-Manual: Moving Speed 0.111 rpm per unit; 1023 position units over 300 deg
