@@ -148,6 +148,32 @@ def test_tracking_fault_after_a_quarter_second(app_lib):
         assert not reading(lib, track, bus, k * TICK_US, 500 - TRACK_TOL_UNITS)
 
 
+def test_tracking_fault_clears_after_a_quarter_second_of_tracking(app_lib):
+    """A standing fault clears once the readings have tracked for 0.25 s in a row (counted
+    from the last one that did not), to the microsecond."""
+    off = 500 - TRACK_TOL_UNITS - 1
+    _, lib, track, bus = tracking_watch(app_lib)
+    for k in range(30):
+        reading(lib, track, bus, k * TICK_US, off)
+    t = 30 * TICK_US
+    assert reading(lib, track, bus, t, off)                                   # standing, not tracking
+    assert reading(lib, track, bus, t + TRACK_FAULT_US - 1, 500)              # tracking for 1 us short
+    assert not reading(lib, track, bus, t + TRACK_FAULT_US, 500)              # cleared
+
+
+def test_a_shaft_coming_a_quarter_of_the_way_each_reading_tracks(app_lib):
+    """A shaft always 12 units behind a goal that moves on, coming 3 units nearer (a quarter
+    of the distance left; Moving Speed 600 allows 13.6 units a reading) at every reading:
+    tracking, never a fault; 2 units (less than a quarter) is not."""
+    for step, tracking in ((3, True), (2, False)):
+        _, lib, track, bus = tracking_watch(app_lib)
+        fault = False
+        for k in range(60):
+            fault |= bool(reading(lib, track, bus, k * TICK_US, 100 + step * k, goal=100 + step * (k - 1) + 12,
+                                  speed=600))
+        assert fault == (not tracking), step
+
+
 def test_tracking_counts_from_the_last_reading_that_tracked(app_lib):
     """A shaft that held its goal and slips 10 units away between two readings, then stays:
     the fault stands 0.25 s after the last reading on the goal, not later."""
