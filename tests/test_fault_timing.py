@@ -182,6 +182,22 @@ def test_tracking_counts_from_the_last_reading_that_tracked(app_lib):
     assert faults.index(True) == 1 + TRACK_FAULT_US // TICK_US
 
 
+def test_readings_of_two_servos_in_one_look_are_both_judged(app_lib):
+    """Two servos read between two looks (servo 1 standing 9 units off its goal, servo 0
+    on its goal and read last): servo 1's readings count too, the fault stands after 0.25 s."""
+    _, lib, track, bus = tracking_watch(app_lib)
+    faults = []
+    for k in range(40):
+        for servo, pos in ((1, 500 - TRACK_TOL_UNITS - 1), (0, 500)):
+            bus.goal[servo], bus.speed[servo] = 500, 100
+            bus.servo[servo].present_position = pos
+            bus.servo[servo].reads += 1
+            bus.status_reads += 1
+            bus.last_read = servo
+        faults.append(lib.track_update(track, bus, k * TICK_US))
+    assert faults.index(True) == TRACK_FAULT_US // TICK_US
+
+
 def test_the_first_reading_is_not_judged(app_lib):
     """The first reading after a reset (1 s after it, far below its goal) has nothing to be
     compared with: no fault, and the next ones, coming nearer at full speed, track."""
