@@ -45,7 +45,7 @@ TARGETS = (
     Target("app.c: command guards", "firmware_stm32/App/Src/app.c",
            (("c", "app_next_goal"), ("c", "command_servos"), ("c", "on_set_position"), ("c", "not_ready"),
             ("c", "on_engage")),
-           ("tests/test_bad_ik.py", "tests/test_hardening.py", "tests/test_app.py")),
+           ("tests/test_bad_ik.py", "tests/test_command_guards.py", "tests/test_hardening.py", "tests/test_app.py")),
     Target("app.c: fault watches", "firmware_stm32/App/Src/app.c",
            (("c", "imu_usable"), ("c", "imu_stale_tick"), ("c", "sample_imu"), ("c", "tick"), ("c", "app_watch"),
             ("c", "app_poll")),

@@ -1,0 +1,64 @@
+"""The control program's guards on commands (app.c), each on the simulated board: what
+clears a refusal, which servo faults refuse engage, what a repeated engage does.
+
+Oracles: the README's command semantics (refusal table, heartbeat fields), the AX-12A
+e-Manual's status error byte, the Moving Speed values of the model file's speeds."""
+import pytest
+
+from invariants import Invariants
+from simboard_tools import FAULT, IDS, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
+from test_fault_injection import TARGET, ReplyTap, engaged_board, set_position, with_error
+from uavarm import messages
+
+REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
+HOLDING = [name for name, _ in messages.STATES].index("holding")
+OVERHEATING = 2          # AX-12A status error byte, bit 2
+
+
+def enabled_board():
+    board = make_board()
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.0) is not None
+    return board, inv
+
+
+def test_a_set_position_taken_clears_the_last_refusal():
+    """engage while disabled is refused (not_enabled); a set position taken afterwards
+    clears command_refused and the refusal."""
+    board = make_board()
+    inv = Invariants(board, BusLog(board))
+    board.send("engage", on=1)
+    hb = inv.next_heartbeat()
+    assert hb["faults"] & FAULT["command_refused"] and hb["refusal"] == REFUSAL["not_enabled"], hb
+    set_position(board, TARGET)
+    hb = inv.next_heartbeat()
+    assert not hb["faults"] & FAULT["command_refused"] and hb["refusal"] == REFUSAL["none"], hb
+
+
+@pytest.mark.parametrize("j", [0, 1, 2])
+def test_engage_is_refused_while_any_servo_reports_an_error(j):
+    """Servo j's status packets carry the overheating bit: engage is refused (servo_fault),
+    whichever servo it is."""
+    board, inv = enabled_board()
+    tap = ReplyTap(board)
+    tap.faults[IDS[j]] = with_error(OVERHEATING)
+    inv.run(0.2)
+    board.send("engage", on=1)
+    inv.run(0.02)
+    hb = inv.next_heartbeat()
+    assert hb["engaged"] == 0 and hb["refusal"] == REFUSAL["servo_fault"], hb
+
+
+def test_engage_again_while_holding_changes_nothing():
+    """Engaged and holding the set position: another engage 1 leaves the arm holding (state
+    holding, the working speed), as it was."""
+    board, inv = engaged_board()
+    inv.run(0.3)
+    assert inv.next_heartbeat()["state"] == HOLDING
+    t = board.time
+    board.send("engage", on=1)
+    inv.run(0.1)
+    assert all(sync_goal_speed(p.raw)[1] == [WORKING_SPEED] * 3 for p in inv.log.syncs(t))
+    hb = inv.next_heartbeat()
+    assert hb["engaged"] == 1 and hb["state"] == HOLDING and not hb["faults"] & FAULT["command_refused"], hb
