@@ -62,3 +62,23 @@ def test_engage_again_while_holding_changes_nothing():
     assert all(sync_goal_speed(p.raw)[1] == [WORKING_SPEED] * 3 for p in inv.log.syncs(t))
     hb = inv.next_heartbeat()
     assert hb["engaged"] == 1 and hb["state"] == HOLDING and not hb["faults"] & FAULT["command_refused"], hb
+
+
+def test_engage_is_refused_while_a_reset_servo_is_set_up_again():
+    """Servo 2 browns out while the arm is parked (its RAM back at power-on values): from the
+    reading that finds it reset until the write that sets it up again is done, engage is
+    refused (servo_fault)."""
+    board, inv = enabled_board()
+    inv.run(0.3)
+    servo = board.bus.servo(IDS[1])
+    servo.power_off()
+    servo.power_on()
+    bus = board.app.bus
+    for _ in range(round(0.2 * 1e6 / board.poll_us)):
+        board.step(board.poll_us)
+        if bus.refit or bus.refitting:
+            break
+    assert bus.refit or bus.refitting
+    board.send("engage", on=1)
+    board.step(board.poll_us)
+    assert not board.app.engaged and board.app.refusal == REFUSAL["servo_fault"]
