@@ -6,7 +6,7 @@ e-Manual's status error byte, the Moving Speed values of the model file's speeds
 import pytest
 
 from invariants import Invariants
-from simboard_tools import FAULT, IDS, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
+from simboard_tools import FAULT, IDS, PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
 from test_fault_injection import TARGET, ReplyTap, engaged_board, set_position, with_error
 from uavarm import messages
 
@@ -82,3 +82,24 @@ def test_engage_is_refused_while_a_reset_servo_is_set_up_again():
     board.send("engage", on=1)
     board.step(board.poll_us)
     assert not board.app.engaged and board.app.refusal == REFUSAL["servo_fault"]
+
+
+def test_engage_before_parked_parks_then_goes_at_transit_speed():
+    """Enabled with the arm hanging straight down and engaged at once: it parks first (park
+    speed), then goes to the set position at the transit speed, then holds it at the working
+    speed."""
+    board = make_board(at=[512, 512, 512])
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.5) is not None
+    set_position(board, TARGET)
+    board.send("engage", on=1)
+    for _ in range(40):                       # the drone repeats the set position (keep-alive)
+        set_position(board, TARGET)
+        inv.run(0.2)
+        if board.heartbeats[-1]["state"] == HOLDING:
+            break
+    assert board.heartbeats[-1]["state"] == HOLDING, board.heartbeats[-1]
+    speeds = [sync_goal_speed(p.raw)[1][0] for p in inv.log.syncs()]
+    order = [s for k, s in enumerate(speeds) if k == 0 or s != speeds[k - 1]]
+    assert order == [PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED], order
