@@ -116,6 +116,8 @@ class Worker:
             if res.returncode == 1:
                 failed = [ln for ln in res.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))]
                 return Outcome("killed", time.monotonic() - t0, (failed or ["?"])[0][:200])
+            if res.returncode < 0:
+                return Outcome("killed", time.monotonic() - t0, f"the tests crashed (signal {-res.returncode})")
             return Outcome("error", time.monotonic() - t0, res.stdout[-300:])
         finally:
             path.write_text(original)
