@@ -81,10 +81,7 @@ def require_clang_fuzzer():
         except ImportError:
             missing = "atheris (pip)"
     if missing is not None:
-        how = "apt-get install clang libclang-rt-14-dev; pip install atheris"
-        if os.environ.get("CI"):
-            pytest.fail(f"{missing} missing in CI: {how}")
-        pytest.skip(f"{missing} not installed: {how}")
+        skip_unless_ci(missing, "apt-get install clang libclang-rt-14-dev; pip install atheris")
 
 
 def pytest_report_header(config):
