@@ -14,6 +14,7 @@ one microsecond or millisecond for what is timed in them).
 | a servo read unanswered after one retry | test_servo_timeout_after_one_retry |
 | tick late: no tick for 1.5 periods | test_late_tick_is_run_from_the_clock_at_one_and_a_half_periods |
 | clock still for 3 ticks | test_stalled_clock_cuts_power_after_three_ticks |
+| ticks_missed, a heartbeat every 0.5 s, the fault LED | the last three tests |
 """
 import pytest
 
@@ -287,3 +288,41 @@ def test_stalled_clock_cuts_power_after_three_ticks():
     ticks = board.app.ticks_run
     assert step_until(board, lambda: not board.servo_power, 0.2) is not None
     assert board.app.ticks_run - ticks == 1 + CLOCK_STALL_TICKS
+
+
+# ---------------------------------------------------------------- counters, heartbeat, LEDs
+
+HEARTBEAT_US = 500_000           # README: a heartbeat every 0.5 s
+LED_TICKS = 10                   # the LEDs are for people: within ten ticks (0.1 s) is soon enough
+
+
+def test_tick_requests_the_main_loop_missed_are_counted():
+    """Three tick requests before one main-loop pass: one tick runs, two are counted in
+    ticks_missed."""
+    board = SimBoard(MODEL)
+    board.run(0.1)
+    missed = board.app.ticks_missed
+    board.tick_interrupt = False
+    for _ in range(3):
+        board.lib.app_request_tick(board.app)
+    board.step(board.poll_us)
+    assert board.app.ticks_missed - missed == 2
+
+
+def test_heartbeats_come_every_half_second_to_the_main_loop_pass():
+    """The k-th heartbeat leaves in the first main-loop pass at or after k x 0.5 s."""
+    board = SimBoard(MODEL)
+    board.run(2.05)
+    assert [round(t * 1e6) for t in board.heartbeat_times[:4]] == [HEARTBEAT_US * k for k in range(1, 5)]
+
+
+def test_the_fault_led_follows_a_fault_within_ten_ticks():
+    """The IMU stops answering on a disabled board: the fault LED lights within ten ticks
+    of the fault standing (and the power LED stays off)."""
+    board = SimBoard(MODEL)
+    board.run(0.3)
+    assert not board.hp.led[1]
+    board.hp.imu_present = False
+    assert step_until(board, lambda: board.lib.app_faults(board.app) & FAULT["imu"], 0.2) is not None
+    assert step_until(board, lambda: board.hp.led[1], (LED_TICKS + 1) * TICK_US / 1e6) is not None
+    assert not board.hp.led[0]
