@@ -175,6 +175,15 @@ def test_a_shaft_coming_a_quarter_of_the_way_each_reading_tracks(app_lib):
         assert fault == (not tracking), step
 
 
+def test_tracking_counts_only_readings_in_a_row(app_lib):
+    """Not tracking for 0.2 s, one reading that tracks, 0.2 s more not tracking: no fault
+    (0.25 s in a row were never reached)."""
+    off, on = 500 - TRACK_TOL_UNITS - 1, 500
+    _, lib, track, bus = tracking_watch(app_lib)
+    poses = [on] + [off] * 20 + [on] + [off] * 20
+    assert not any(reading(lib, track, bus, k * TICK_US, pos) for k, pos in enumerate(poses))
+
+
 def test_tracking_counts_from_the_last_reading_that_tracked(app_lib):
     """A shaft that held its goal and slips 10 units away between two readings, then stays:
     the fault stands 0.25 s after the last reading on the goal, not later."""
