@@ -220,10 +220,11 @@ def test_the_first_reading_is_not_judged(app_lib):
 UNITS_PER_S_PER_SPEED = 0.111 * 360 / 60 * 1023 / 300
 
 
+@pytest.mark.parametrize("direction", [1, -1])
 @pytest.mark.parametrize("dt_us, tracking", [(17_547, True), (17_701, False)])
-def test_tracking_needs_a_quarter_of_what_the_speed_allows(app_lib, dt_us, tracking):
-    """A shaft 100 units from its goal comes 1 unit nearer at each reading, at Moving Speed
-    100: readings 17.547 ms apart, a quarter of what the speed allows is 0.996 units, so it
+def test_tracking_needs_a_quarter_of_what_the_speed_allows(app_lib, dt_us, tracking, direction):
+    """A shaft 100 units from its goal (below it or above it) comes 1 unit nearer at each
+    reading, at Moving Speed 100: readings 17.547 ms apart, a quarter of what the speed allows is 0.996 units, so it
     tracks for ever; 17.701 ms apart it is 1.005 units, so it does not, and the fault stands
     after 0.25 s."""
     for dt, below in ((17_547, True), (17_701, False)):
@@ -231,7 +232,7 @@ def test_tracking_needs_a_quarter_of_what_the_speed_allows(app_lib, dt_us, track
     _, lib, track, bus = tracking_watch(app_lib)
     fault = False
     for k in range(40):
-        fault |= bool(reading(lib, track, bus, k * dt_us, 400 + k, goal=500, speed=100))
+        fault |= bool(reading(lib, track, bus, k * dt_us, 500 - direction * (100 - k), goal=500, speed=100))
     assert fault == (not tracking)
 
 
