@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: codegen check-generated test bench sim-report fuzz fuzz-long clean
+.PHONY: codegen check-generated test bench sim-report fuzz fuzz-long mutate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv --system-site-packages $(VENV)
@@ -38,6 +38,13 @@ fuzz-long: $(STAMP)
 	$(PY) fuzz/run.py --runs 10000000 llcp_rx dxl_parser
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 app_link
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 model_loader
+
+# Mutation testing (README "Verification"): mutants of the safety-relevant firmware, templates
+# and model modules against their behavioural tests; a benchmark, not part of `make test`.
+# Resumes from build/mutate/results.jsonl. E.g. make mutate MUTATE_ARGS="--jobs 2 --target llcp"
+MUTATE_ARGS ?= --jobs 1
+mutate: $(STAMP)
+	$(PY) -m mutation $(MUTATE_ARGS)
 
 clean:
 	rm -rf build

@@ -25,6 +25,7 @@ import shutil
 import subprocess
 import sys
 import time
+import tomllib
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -38,7 +39,7 @@ FUZZ = ROOT / "fuzz"
 SEEDS = FUZZ / "corpus"
 OUT = ROOT / "build" / "fuzz"
 APP_SRC = firmware.APP / "Src"
-INCLUDE_DIRS = [generated.GENERATED, firmware.APP / "Inc"]
+INCLUDE_DIRS = [generated.GENERATED, firmware.APP / "Inc", OUT]   # OUT: arm_spec.h (write_arm_spec)
 
 SANITIZE = ["-g", "-O1", "-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all"]
 # The project's warning set (uavarm/cbuild.py), and the host build's float32 semantics.
@@ -97,11 +98,39 @@ def atheris_available() -> bool:
     return proc.returncode == 0
 
 
+def write_arm_spec(model_file: Path = ROOT / "model" / "manipulator.toml") -> None:
+    """build/fuzz/arm_spec.h: the arm's numbers for fuzz/plain_arm.h, read from the model
+    file with tomllib (not through the code generator)."""
+    raw = tomllib.loads(model_file.read_text())
+    joints = [raw["joints"][j] for j in ("theta1", "theta2", "theta3")]
+    servos = [raw["servo"][j] for j in ("theta1", "theta2", "theta3")]
+    geo, col = raw["geometry"], raw["collision"]
+
+    def floats(values):
+        return "{ " + ", ".join(f"{float(v)!r}f" for v in values) + " }"
+    text = "\n".join([
+        f"/* from {model_file.name} by fuzz/run.py: the fuzzers' plain-geometry judge (plain_arm.h) */",
+        *(f"#define ARM_{k} {float(geo[k])!r}f" for k in ("L1", "L2", "L3")),
+        f"#define ARM_JOINT_MIN_DEG {floats(j['min'] for j in joints)}",
+        f"#define ARM_JOINT_MAX_DEG {floats(j['max'] for j in joints)}",
+        f"#define ARM_BODY_Z {float(col['body_z'])!r}f",
+        f"#define ARM_LEG_ANGLES_DEG {floats(col['leg_angles'])}",
+        f"#define ARM_LEG_HALF_WIDTH_DEG {float(col['leg_half_width'])!r}f",
+        f"#define ARM_LEG_DISTANCE {float(col['leg_distance'])!r}f",
+        f"#define ARM_SERVO_ZERO {floats(s['zero'] for s in servos)}",
+        f"#define ARM_SERVO_DIRECTION {floats(s['direction'] for s in servos)}", ""])
+    OUT.mkdir(parents=True, exist_ok=True)
+    header = OUT / "arm_spec.h"
+    if not header.exists() or header.read_text() != text:
+        header.write_text(text)
+
+
 def build(name: str) -> Path:
     """build/fuzz/<name>, rebuilt when its sources, headers, flags or compiler change."""
     cc = compiler()
     if cc is None:
         raise FuzzSetupError("clang not found (apt-get install clang libclang-rt-14-dev)")
+    write_arm_spec()
     sources = [FUZZ / f"{name}.c"] + _c_sources(name)
     flags = FLAGS + [f"-I{d}" for d in INCLUDE_DIRS]
     digest = hashlib.sha256(" ".join([cc, *flags]).encode())
@@ -254,6 +283,7 @@ def coverage(name: str) -> str:
     tools = {t: shutil.which(t) or shutil.which(f"{t}-14") for t in ("llvm-profdata", "llvm-cov")}
     if cc is None or None in tools.values():
         raise FuzzSetupError("coverage needs clang, llvm-profdata and llvm-cov (Debian llvm-14)")
+    write_arm_spec()
     out = OUT / "coverage" / name
     out.mkdir(parents=True, exist_ok=True)
     (out / "main.c").write_text(_REPLAY_MAIN)

@@ -22,12 +22,17 @@ def gen():
     return generated.default()
 
 
+def skip_unless_ci(missing: str, how: str):
+    """A tool a test needs is missing: skipped on a developer machine, a failure in CI (CI set)."""
+    if os.environ.get("CI"):
+        pytest.fail(f"{missing} missing in CI: {how}")
+    pytest.skip(f"{missing} not installed: {how}")
+
+
 def require_arm_toolchain():
     """The target checks may only be skipped on a developer machine, never in CI."""
     if shutil.which("arm-none-eabi-gcc") is None:
-        if os.environ.get("CI"):
-            pytest.fail("arm-none-eabi-gcc missing in CI: .ci/run must install gcc-arm-none-eabi")
-        pytest.skip("arm-none-eabi-gcc not installed (apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)")
+        skip_unless_ci("arm-none-eabi-gcc", "apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi")
 
 
 def require_ros():
@@ -93,7 +98,13 @@ def require_clang_fuzzer():
         except ImportError:
             missing = "atheris (pip)"
     if missing is not None:
-        how = "apt-get install clang libclang-rt-14-dev; pip install atheris"
-        if os.environ.get("CI"):
-            pytest.fail(f"{missing} missing in CI: {how}")
-        pytest.skip(f"{missing} not installed: {how}")
+        skip_unless_ci(missing, "apt-get install clang libclang-rt-14-dev; pip install atheris")
+
+
+def pytest_report_header(config):
+    """The hypothesis seed of this run (pyproject.toml sets one; --hypothesis-seed=N for another)."""
+    return f"hypothesis seed: {config.getoption('hypothesis_seed', None)}"
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    terminalreporter.write_line(pytest_report_header(config))

@@ -315,7 +315,7 @@ def test_frozen_imu_parks_the_arm_and_recovers():
     ticks the arm disengages and parks, imu is flagged and engage refused; sampling again,
     the flag clears and engage works."""
     board, inv = engaged_board()
-    stale = board.lib.APP_IMU_STALE_TICKS
+    stale = 5                      # README: no usable sample for 5 ticks
     freeze_imu(board)
     t0 = board.time
     assert inv.run_until(lambda: any(sync_goal_speed(s.raw)[1] == [PARK_SPEED] * 3 for s in inv.log.syncs(t0)),
@@ -344,7 +344,7 @@ def test_imu_i2c_loss_while_engaged(ticks):
     (no fault, the arm stays engaged); 10 is a lost chip (imu, the arm parks), and after it
     answers again the flag clears and engage works."""
     board, inv = engaged_board()
-    stale = board.lib.APP_IMU_STALE_TICKS
+    stale = 5                      # README: no usable sample for 5 ticks
     n = len(board.heartbeats)
     board.hp.imu_present = False
     inv.run(ticks * TICK, step=TICK)
@@ -370,7 +370,7 @@ def test_imu_reset_to_sleep_is_set_up_again():
     assert board.imu.asleep
     inv.flagged("imu", 0.6)
     assert board.heartbeats[-1]["engaged"] == 0
-    retry = board.lib.APP_IMU_RETRY_MS / 1000
+    retry = 1.0                    # README: the chip is set up again every second
     inv.clear("imu", retry + 0.6)
     assert not board.imu.asleep and board.imu.accel_lsb_per_g == 8192
     board.send("engage", on=1)

@@ -18,6 +18,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+from conftest import require_arm_toolchain, skip_unless_ci
 from uavarm import cbuild
 from uavarm import llcp as pyllcp
 
@@ -436,7 +437,7 @@ def test_receiver_and_encoder_under_address_and_undefined_sanitizers():
     libs = [subprocess.run([cc, f"-print-file-name={n}"], capture_output=True, text=True).stdout.strip()
             for n in ("libasan.so", "libubsan.so")]
     if not all(os.path.isabs(p) and os.path.exists(p) for p in libs):
-        pytest.skip("compiler has no ASan/UBSan runtime")
+        skip_unless_ci("the compiler's ASan/UBSan runtime", "apt-get install gcc (libasan, libubsan)")
     env = dict(os.environ, LD_PRELOAD=":".join(libs), ASAN_OPTIONS="detect_leaks=0",
                PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
     proc = subprocess.run([sys.executable, "-c", ASAN_CHILD, str(INC), str(SRC), str(HDR)],
@@ -446,9 +447,8 @@ def test_receiver_and_encoder_under_address_and_undefined_sanitizers():
 
 
 def test_compiles_for_the_target(tmp_path):
+    require_arm_toolchain()
     gcc = shutil.which("arm-none-eabi-gcc")
-    if gcc is None:
-        pytest.skip("arm-none-eabi-gcc not installed")
     proc = subprocess.run([gcc, *cbuild.TARGET_FLAGS, f"-I{INC}", "-c", str(SRC), "-o", str(tmp_path / "llcp.o")],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr

@@ -106,3 +106,62 @@ def test_codec_errors_are_clear():
     with pytest.raises(messages.MessageError, match="unknown message id"):
         messages.decode(b"\x99")
     assert math.isnan(messages.decode(messages.encode("set_position", x=math.nan, y=0.0, z=0.0))[1]["x"])
+
+
+HEARTBEAT_BY_HAND = bytes([
+    0x20,                               # id: heartbeat
+    0x02, 0x01,                         # seq 0x0102, little-endian
+    0x06, 0x05, 0x04, 0x03,             # uptime_ms 0x03040506
+    0x01,                               # enabled
+    0x00,                               # engaged
+    0x01,                               # unreachable
+    0x05,                               # state: holding
+    0x07,                               # refusal: not_finite
+    0x01, 0x0C,                         # faults 0x0C01: servo_timeout, servo_reset, timing
+    0x04, 0x20, 0x40,                   # servo1..3_error: overheating, overload, instruction
+    0x00, 0x00, 0x80, 0x3F,             # set_x 1.0 (0x3F800000)
+    0x00, 0x00, 0x00, 0xC0,             # set_y -2.0 (0xC0000000)
+    0x00, 0x00, 0xF0, 0xC2,             # set_z -120.0 (0xC2F00000)
+    0x00, 0x00, 0x00, 0x3F,             # q1 0.5 (0x3F000000)
+    0x00, 0x00, 0x80, 0xBE,             # q2 -0.25 (0xBE800000)
+    0x00, 0x00, 0xC8, 0x42,             # q3 100.0 (0x42C80000)
+    0x11, 0x10,                         # link_frames_ok 0x1011
+    0x13, 0x12,                         # link_errors 0x1213
+    0x15, 0x14,                         # link_echoes 0x1415
+    0x17, 0x16,                         # servo_timeouts 0x1617
+    0x19, 0x18,                         # servo_resets 0x1819
+    0x1B, 0x1A,                         # ticks_late 0x1A1B
+    0x1D, 0x1C,                         # ticks_missed 0x1C1D
+    0x03,                               # bus_state: running
+    0x02,                               # reset_cause: brown_out
+    0x03,                               # last_fault: exception 3, HardFault
+    0x00, 0x03, 0x00, 0x00,             # firmware 0x000300
+    0x3E, 0xD4, 0xED, 0xBE,             # model 0xBEEDD43E
+    0x5F, 0x2A, 0x05, 0x04,             # servo1: 9.5 V, 42 deg C, load 0x0405
+    0x60, 0x2B, 0x06, 0x05,             # servo2: 9.6 V, 43 deg C, load 0x0506
+    0x61, 0x2C, 0x07, 0x06,             # servo3: 9.7 V, 44 deg C, load 0x0607
+])
+HEARTBEAT_VALUES = dict(
+    seq=0x0102, uptime_ms=0x03040506, enabled=1, engaged=0, unreachable=1, state=5, refusal=7, faults=0x0C01,
+    servo1_error=0x04, servo2_error=0x20, servo3_error=0x40, set_x=1.0, set_y=-2.0, set_z=-120.0,
+    q1=0.5, q2=-0.25, q3=100.0, link_frames_ok=0x1011, link_errors=0x1213, link_echoes=0x1415,
+    servo_timeouts=0x1617, servo_resets=0x1819, ticks_late=0x1A1B, ticks_missed=0x1C1D, bus_state=3,
+    reset_cause=2, last_fault=3, firmware=0x000300, model=0xBEEDD43E,
+    servo1_voltage=95, servo1_temperature=42, servo1_load=0x0405,
+    servo2_voltage=96, servo2_temperature=43, servo2_load=0x0506,
+    servo3_voltage=97, servo3_temperature=44, servo3_load=0x0607)
+
+
+def test_heartbeat_bytes_by_hand(gen):
+    """The heartbeat laid out field by field by hand (id 0x20, then each field packed
+    little-endian in the documented order, 78 bytes): the C packs exactly these bytes, the C
+    and the Python codec read them back as the values, the Python codec writes them."""
+    ffi, lib = gen
+    assert len(HEARTBEAT_BY_HAND) == 78
+    assert c_pack(gen, messages.BY_ID[0x20], HEARTBEAT_VALUES) == HEARTBEAT_BY_HAND
+    assert messages.encode("heartbeat", **HEARTBEAT_VALUES) == HEARTBEAT_BY_HAND
+    assert messages.decode(HEARTBEAT_BY_HAND) == ("heartbeat", HEARTBEAT_VALUES)
+    out = ffi.new("msg_heartbeat_t *")
+    assert lib.msg_heartbeat_unpack(HEARTBEAT_BY_HAND, len(HEARTBEAT_BY_HAND), out)
+    assert {n: getattr(out, n) for n in HEARTBEAT_VALUES} == HEARTBEAT_VALUES
+    assert not lib.msg_heartbeat_unpack(HEARTBEAT_BY_HAND[:-1], 77, out)

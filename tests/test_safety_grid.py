@@ -1,8 +1,9 @@
 """Exhaustive safety over pairs of poses: from start poses on a grid, to targets on a grid,
 at drone tilts up to +-30 deg, every goal the firmware's command path sends (engage, follow,
-disengage: motion.c as app.c runs it, after its last check) is a safe pose and the path the
+disengage: app.c's own command_servos, tests/csrc/safety_grid.c) is a safe pose and the path the
 servos take to it from the previous goal is safe, by plain geometry; and the SymPy model's
 own IK selection never picks an unsafe pose."""
+import hashlib
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 import sympy as sp
 from scipy.spatial.transform import Rotation
 
+import arm_spec
 from conftest import ROOT
 from oracles import check_pose, servo_path
 from uavarm import cbuild, firmware, generated
@@ -33,9 +35,14 @@ def grid(m):
 
 @pytest.fixture(scope="module")
 def harness():
-    sources = firmware.app_sources() + [HARNESS / "safety_grid.c"]
+    """safety_grid.c includes app.c (its static command path): app.c's hash joins the flags,
+    so an edited app.c rebuilds."""
+    app_c = firmware.APP / "Src" / "app.c"
+    sources = [s for s in firmware.app_sources() if s != app_c] + [HARNESS / "safety_grid.c"]
+    tag = hashlib.sha256(app_c.read_bytes()).hexdigest()[:16]
     return cbuild.load("safety_grid", sources, [HARNESS / "safety_grid.h"],
-                       include_dirs=[generated.GENERATED, firmware.APP / "Inc", HARNESS])
+                       include_dirs=[generated.GENERATED, firmware.APP / "Inc", HARNESS, firmware.APP / "Src"],
+                       extra_flags=[f"-DAPP_C_SHA=0x{tag}"])
 
 
 def assert_safe(m, q, what):
@@ -65,7 +72,7 @@ def test_every_commanded_move_is_safe_from_any_start(harness):
     the servos' path from the one before (every joint at the same speed, each arriving at
     its own time, sampled) pass the plain-geometry check."""
     ffi, lib = harness
-    m = config.load()
+    m = arm_spec.spec()      # the oracle's numbers, read apart from the generator
     reach = m.L1 + m.L2 + m.L3
     xs = np.arange(-reach, reach + 0.1, 24.0)
     zs = np.arange(-reach - 20.0, 20.1, 24.0)
@@ -104,7 +111,7 @@ def test_from_park_every_reachable_target_gets_a_route(harness):
     (0.5 mm, 0.5 deg) gets a clear route: none refused."""
     import simboard_tools
     ffi, lib = harness
-    m = config.load()
+    m = arm_spec.spec()
     targets, _ = grid(m)
     targets = targets[::7]
     reachable = np.ascontiguousarray(targets[[simboard_tools.level_ik_clear(p) for p in targets]], dtype=np.float32)
@@ -157,6 +164,6 @@ def test_model_never_selects_an_unsafe_pose():
         q = model_solutions(m, (targets + o) @ r_wb - o, park)
         valid = ~np.isnan(q[:, 0])
         chosen += int(valid.sum())
-        near += assert_safe(m, q[valid], f"model at roll {math.degrees(roll):.0f}, pitch {math.degrees(pitch):.0f}")
+        near += assert_safe(arm_spec.spec(), q[valid], f"model at roll {math.degrees(roll):.0f}, pitch {math.degrees(pitch):.0f}")
     print(f"\nmodel: {len(targets)} targets x {len(tilts)} tilts, {chosen} selected, 0 unsafe "
           f"({near} within {MARGIN} of a boundary)")

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, require_arm_toolchain
+from conftest import ROOT, require_arm_toolchain, skip_unless_ci
 from hal_stubs import weak_stubs
 from uavarm import firmware
 from uavarm.model import config
@@ -463,7 +463,7 @@ def test_board_port_refuses_a_hal_crystal_other_than_the_board_setting(tmp_path)
 
 def test_make_without_stm32cubef4_says_where_to_get_it(tmp_path):
     if shutil.which("make") is None:
-        pytest.skip("make not installed")
+        skip_unless_ci("make", "apt-get install make")
     proc = make(f"BUILD={tmp_path}", check=False)
     assert proc.returncode != 0
     assert "STM32CUBE_F4" in proc.stdout and "github.com/STMicroelectronics/STM32CubeF4" in proc.stdout

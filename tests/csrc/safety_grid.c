@@ -1,58 +1,66 @@
+/* The application's own command path (app.c's command_servos, engage and disengage as
+ * app.c does them) on an app_t set up in memory: app.c is compiled into this file so its
+ * static functions are reachable; nothing of it is re-implemented here. */
 #include "safety_grid.h"
 
-#include <string.h>
+#include "app.c"
 
-#include "app.h"
-#include "kinematics.h"
-#include "model_params.h"
-#include "motion.h"
-#include "servo_map.h"
-#include "stabiliser.h"
-
-/* One tick as app.c's command_servos runs it: app_next_goal, then the servo map. */
-static void command(motion_t *m, const float *target, bool pinned, float sent[3], float *goals, uint32_t *run,
-                    size_t *n, size_t cap, uint32_t run_no)
+/* An enabled, configured arm standing (and commanded) at `start`, parked, the board tilted
+ * by (roll, pitch): false if the application would not start from there. */
+static bool arm_at(app_t *app, const float start[3], float roll, float pitch)
 {
-    float q[3];
-    uint16_t units[3];
-    (void)app_next_goal(m, target, pinned, sent, q);
-    if (!servo_joints_to_units(q, units) || *n >= cap) return;
-    memcpy(sent, q, sizeof q);
-    memcpy(goals + 3 * *n, q, sizeof q);
-    run[(*n)++] = run_no;
+    memset(app, 0, sizeof *app);
+    app->enabled = true;
+    app->bus.state = SBUS_RUNNING;
+    stab_reset(&app->stab);
+    est_set(&app->stab.attitude, roll, pitch);
+    est_attitude_up(&app->stab.attitude, app->stab.up);   /* the estimate's up direction (rate 0) */
+    if (!motion_start(&app->motion, start)) return false;
+    memcpy(app->q_cmd, start, sizeof app->q_cmd);
+    app->parked = true;
+    return true;
+}
+
+/* `ticks` of command_servos; each goal it hands the servo bus joins goals[]. */
+static void run_ticks(app_t *app, uint32_t ticks, float *goals, uint32_t *run, size_t *n, size_t cap,
+                      uint32_t run_no)
+{
+    for (uint32_t k = 0; k < ticks && *n < cap; ++k) {
+        app->bus.command_pending = false;
+        command_servos(app);
+        if (!app->bus.command_pending) continue;
+        memcpy(goals + 3 * *n, app->q_cmd, sizeof app->q_cmd);
+        run[(*n)++] = run_no;
+    }
 }
 
 size_t safety_grid(const float start[3], const float *targets, size_t n_targets, const float *tilts, size_t n_tilts,
                    uint32_t ticks, float *goals, uint32_t *run, size_t cap, uint32_t *refused)
 {
-    static const float park[3] = { MODEL_PARK_Q1, MODEL_PARK_Q2, MODEL_PARK_Q3 };
-    stab_t s;
+    static app_t app;
     size_t n = 0;
     uint32_t run_no = 0;
     *refused = 0;
-    stab_reset(&s);
     for (size_t t = 0; t < n_tilts; ++t) {
-        est_set(&s.attitude, tilts[2 * t], tilts[2 * t + 1]);
-        est_attitude_up(&s.attitude, s.up);   /* the estimate's up direction (rate 0) */
         for (size_t i = 0; i < n_targets; ++i, ++run_no) {
+            if (!arm_at(&app, start, tilts[2 * t], tilts[2 * t + 1])) return n;
             const float *level = targets + 3 * i;
-            motion_t m;
-            float p[3], sent[3];
-            if (!motion_start(&m, start)) return n;
-            memcpy(sent, start, sizeof sent);
-            /* engage: as app.c's head_for */
-            stab_command_point(&s, level, p);
-            if (!motion_head_for(&m, p, level)) {
+            memcpy(app.set_position, level, sizeof app.set_position);
+            app.set_on_axis = motion_on_axis(level);
+            /* engage from parked: as on_engage once the arm is ready */
+            if (!head_for(&app, app.set_position)) {
                 ++*refused;
                 continue;
             }
-            for (uint32_t k = 0; k < ticks; ++k) command(&m, p, motion_on_axis(level), sent, goals, run, &n, cap, run_no);
-            /* disengage */
-            if (!motion_go(&m, park)) {
+            app.engaged = true;
+            run_ticks(&app, ticks, goals, run, &n, cap, run_no);
+            /* engage 0 */
+            disengage(&app);
+            if (app.motion_refused) {
                 ++*refused;
                 continue;
             }
-            for (uint32_t k = 0; k < ticks; ++k) command(&m, NULL, false, sent, goals, run, &n, cap, run_no);
+            run_ticks(&app, ticks, goals, run, &n, cap, run_no);
         }
     }
     return n;

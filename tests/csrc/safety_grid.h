@@ -1,4 +1,4 @@
-/* Test harness: the firmware's command path over grids of start poses, targets and tilts. */
+/* Test harness: the firmware's command path (app.c's command_servos) over grids of start poses, targets and tilts. */
 #include <stddef.h>
 #include <stdint.h>
 

@@ -1,0 +1,125 @@
+"""`python -m mutation [--jobs N] [--target TEXT] [--every K] [--list]`: run the mutants of
+the chosen targets (mutation/targets.py) against their tests, resuming from the results
+file, and print the score table."""
+from __future__ import annotations
+
+import argparse
+import queue
+import threading
+import time
+from pathlib import Path
+
+from .catalogue import ROOT, file_digest, target_mutants
+from .results import Results, equivalents
+from .targets import TARGETS
+from .worker import Worker
+
+BASE = ROOT / "build" / "mutate"
+
+
+def chosen(args):
+    targets = [t for t in TARGETS if not args.target or any(s.lower() in t.name.lower() for s in args.target)]
+    work = []
+    for t in targets:
+        digest = file_digest(t.path)
+        for k, mu in enumerate(target_mutants(t)):
+            if k % args.every == args.offset % args.every and (not args.only or args.only in mu.id):
+                work.append((t, mu, digest))
+    return targets, work
+
+
+def run_all(work, results: Results, jobs: int, timeout: float, again: str = "") -> None:
+    """Runs each mutant of `work` without a result (again="survivors": also the survivors;
+    again="all": every one)."""
+    todo: queue.Queue = queue.Queue()
+    for item in work:
+        rec = results.get(item[1].id, item[2])
+        if rec is None or again == "all" or (again == "survivors" and rec["status"] == "survived"):
+            todo.put(item)
+    total = todo.qsize()
+    print(f"{len(work)} mutants, {len(work) - total} already in {results.path.relative_to(ROOT)}, {total} to run "
+          f"on {jobs} job(s)", flush=True)
+    counter = iter(range(1, total + 1))
+
+    def loop() -> None:
+        worker = Worker(BASE, timeout)
+        worker.prepare()
+        while True:
+            try:
+                target, mu, digest = todo.get_nowait()
+            except queue.Empty:
+                return
+            out = worker.run(target, mu)
+            results.add({"id": mu.id, "digest": digest, "target": target.name, "status": out.status,
+                         "seconds": round(out.seconds, 1), "detail": out.detail})
+            print(f"[{next(counter)}/{total}] {out.status:9} {out.seconds:5.1f} s  {mu.id}", flush=True)
+
+    threads = [threading.Thread(target=loop) for _ in range(jobs)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+
+
+def score_table(targets, work, results: Results) -> str:
+    eq = equivalents()
+    rows = ["| target | mutants run (of) | killed | survived | equivalent | not compiled | score |",
+            "|---|---:|---:|---:|---:|---:|---:|"]
+    survivors = []
+    sums = [0] * 5
+    for t in targets:
+        everything = [results.get(mu.id, d) for tt, mu, d in work if tt is t]
+        recs = [r for r in everything if r is not None]
+        killed = sum(r["status"] == "killed" for r in recs)
+        equivalent = sum(r["status"] == "same_code" or (r["status"] == "survived" and r["id"] in eq) for r in recs)
+        survived = [r for r in recs if r["status"] == "survived" and r["id"] not in eq]
+        stillborn = sum(r["status"] == "stillborn" for r in recs)
+        judged = killed + len(survived)
+        score = f"{100 * killed / judged:.1f} %" if judged else "-"
+        rows.append(f"| {t.name} | {len(recs)} ({len(everything)}) | {killed} | {len(survived)} | {equivalent} | {stillborn} | {score} |")
+        for k, v in enumerate((len(recs), killed, len(survived), equivalent, stillborn)):
+            sums[k] += v
+        survivors += [r["id"] for r in survived]
+    judged = sums[1] + sums[2]
+    rows.append(f"| **all** | {sums[0]} | {sums[1]} | {sums[2]} | {sums[3]} | {sums[4]} | "
+                f"{100 * sums[1] / judged:.1f} % |" if judged else "| **all** | 0 | | | | | - |")
+    text = "\n".join(rows)
+    if survivors:
+        text += "\n\nSurvivors not in mutation/equivalent.toml:\n" + "\n".join(f"  {s}" for s in survivors)
+    return text
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m mutation", description=__doc__)
+    ap.add_argument("--jobs", type=int, default=1, help="workers in parallel (each a copy of the tree)")
+    ap.add_argument("--target", action="append", help="run only targets whose name contains this (repeatable)")
+    ap.add_argument("--every", type=int, default=1, help="a representative subset: every K-th mutant of each target")
+    ap.add_argument("--offset", type=int, default=0, help="which of the K (with --every)")
+    ap.add_argument("--only", help="run only mutants whose id contains this text")
+    ap.add_argument("--results", type=Path, default=BASE / "results.jsonl")
+    ap.add_argument("--timeout", type=float, default=300.0, help="seconds before a mutant's test run counts as a hang")
+    ap.add_argument("--again", choices=("survivors", "all"), default="",
+                    help="run the survivors (after the tests were strengthened), or all chosen, again")
+    ap.add_argument("--list", action="store_true", help="list the mutants and stop")
+    ap.add_argument("--table", action="store_true",
+                    help="print the table of every mutant with a result in the results file, run nothing")
+    args = ap.parse_args(argv)
+    if args.table:
+        args.every = 1
+    targets, work = chosen(args)
+    if args.list:
+        for t, mu, _ in work:
+            print(f"{t.name}: {mu.id}")
+        print(f"{len(work)} mutants")
+        return 0
+    results = Results(args.results.resolve())
+    if not args.table:
+        t0 = time.monotonic()
+        run_all(work, results, args.jobs, args.timeout, args.again)
+        print(f"done in {time.monotonic() - t0:.0f} s")
+    print(score_table(targets, work, results))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,68 @@
+"""What `make mutate` mutates, and which behavioural tests judge each part.
+
+A target is one row of the score table: a source file, the spans of it that are mutated
+(named functions, or a marked span of a template), whether generated/ must be regenerated
+from the mutated file (templates and the generator's model modules: so a mutant reaches
+generated/ the way a bug would, and the freshness test is not what kills it), and the
+tests run against each mutant (fastest first; pytest stops at the first failure).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Target:
+    name: str
+    path: str
+    spans: tuple          # ("c", function) | ("py", function) | ("mark", first line regex, last line regex)
+    tests: tuple          # pytest arguments
+    regenerate: bool = False
+
+
+SAFETY_LAYERS = "tests/test_safety_layers.py"
+
+TARGETS = (
+    Target("kin_check_joints (template)", "templates/kinematics.c.j2",
+           (("mark", r"^static inline bool within_limits", r"^    return KIN_OK;"),),
+           (SAFETY_LAYERS, "tests/test_collision.py"), regenerate=True),
+    Target("kin_check_joints (model: limits, body, legs)", "model/collision.py",
+           (("py", "body_clear"), ("py", "leg_planes"), ("py", "near_leg"), ("py", "_near_leg_angle"),
+            ("py", "legs_clear")),
+           (SAFETY_LAYERS, "tests/test_collision.py", "tests/test_motion_kinematics.py"), regenerate=True),
+    Target("kin_check_joints (model: joint limits)", "model/kinematics.py", (("py", "joint_limits_ok"),),
+           (SAFETY_LAYERS, "tests/test_collision.py"), regenerate=True),
+    Target("servo_joints_to_units (template)", "templates/servo_map.c.j2",
+           (("mark", r"^static uint16_t to_units", r"^    return true;"),),
+           (SAFETY_LAYERS, "tests/test_servo_map.py"), regenerate=True),
+    Target("servo_joints_to_units (model)", "model/servo.py",
+           (("py", "units_per_rad"), ("py", "joint_to_units"), ("py", "units_to_joint"), ("py", "unit_range")),
+           (SAFETY_LAYERS, "tests/test_servo_map.py"), regenerate=True),
+    Target("IK selection (template)", "templates/kinematics.c.j2",
+           (("mark", r"^    int best = -1;", r"^    return best;"),
+            ("mark", r"^    kin_status_t first_reason", r"^    return first_reason;")),
+           ("tests/test_kin_ik.py", SAFETY_LAYERS), regenerate=True),
+    Target("app.c: command guards", "firmware_stm32/App/Src/app.c",
+           (("c", "app_next_goal"), ("c", "command_servos"), ("c", "on_set_position"), ("c", "not_ready"),
+            ("c", "on_engage")),
+           ("tests/test_bad_ik.py", "tests/test_command_guards.py", "tests/test_hardening.py", "tests/test_app.py")),
+    Target("app.c: fault watches", "firmware_stm32/App/Src/app.c",
+           (("c", "imu_usable"), ("c", "imu_stale_tick"), ("c", "sample_imu"), ("c", "tick"), ("c", "app_watch"),
+            ("c", "app_poll")),
+           ("tests/test_fault_timing.py", "tests/test_hardening.py", "tests/test_app.py")),
+    Target("servo_track.c: tracking watch", "firmware_stm32/App/Src/servo_track.c",
+           (("c", "tracks"), ("c", "look_at_servo"), ("c", "track_update")),
+           ("tests/test_fault_timing.py", "tests/test_fault_injection.py::test_stuck_servo_is_flagged_the_arm_parks_and_recovers",
+            "tests/test_fault_injection.py::test_drifting_servo_is_flagged_the_arm_parks_and_recovers",
+            "tests/test_fault_injection.py::test_sluggish_but_healthy_servos_are_not_flagged")),
+    Target("llcp.c: LLCP receiver", "firmware_stm32/App/Src/llcp.c",
+           (("c", "hex_value"), ("c", "llcp_rx_poll"), ("c", "finish"), ("c", "llcp_rx_byte")),
+           ("tests/test_llcp.py", "tests/test_fault_timing.py")),
+    Target("dxl_protocol.c: status parser", "firmware_stm32/App/Src/dxl_protocol.c",
+           (("c", "dxl_checksum"), ("c", "candidate"), ("c", "drop_front"), ("c", "dxl_parse_byte")),
+           ("tests/test_dxl_protocol.py", "tests/test_servo_bus.py")),
+)
+
+# Never run against a mutant: they compare generated/ with the generator's output, which
+# would kill a template or model mutant without any behaviour being checked.
+FRESHNESS_TESTS = ("tests/test_codegen.py", "tests/test_cli.py::test_codegen_check_passes_through")

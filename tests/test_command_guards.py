@@ -1,0 +1,105 @@
+"""The control program's guards on commands (app.c), each on the simulated board: what
+clears a refusal, which servo faults refuse engage, what a repeated engage does.
+
+Oracles: the documented command semantics (docs/firmware.md: refusal table, heartbeat fields), the AX-12A
+e-Manual's status error byte, the Moving Speed values of the model file's speeds."""
+import pytest
+
+from invariants import Invariants
+from simboard_tools import FAULT, IDS, PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
+from test_fault_injection import TARGET, ReplyTap, engaged_board, set_position, with_error
+from uavarm import messages
+
+REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
+HOLDING = [name for name, _ in messages.STATES].index("holding")
+OVERHEATING = 2          # AX-12A status error byte, bit 2
+
+
+def enabled_board():
+    board = make_board()
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.0) is not None
+    return board, inv
+
+
+def test_a_set_position_taken_clears_the_last_refusal():
+    """engage while disabled is refused (not_enabled); a set position taken afterwards
+    clears command_refused and the refusal."""
+    board = make_board()
+    inv = Invariants(board, BusLog(board))
+    board.send("engage", on=1)
+    hb = inv.next_heartbeat()
+    assert hb["faults"] & FAULT["command_refused"] and hb["refusal"] == REFUSAL["not_enabled"], hb
+    set_position(board, TARGET)
+    hb = inv.next_heartbeat()
+    assert not hb["faults"] & FAULT["command_refused"] and hb["refusal"] == REFUSAL["none"], hb
+
+
+@pytest.mark.parametrize("j", [0, 1, 2])
+def test_engage_is_refused_while_any_servo_reports_an_error(j):
+    """Servo j's status packets carry the overheating bit: engage is refused (servo_fault),
+    whichever servo it is."""
+    board, inv = enabled_board()
+    tap = ReplyTap(board)
+    tap.faults[IDS[j]] = with_error(OVERHEATING)
+    inv.run(0.2)
+    board.send("engage", on=1)
+    inv.run(0.02)
+    hb = inv.next_heartbeat()
+    assert hb["engaged"] == 0 and hb["refusal"] == REFUSAL["servo_fault"], hb
+
+
+def test_engage_again_while_holding_changes_nothing():
+    """Engaged and holding the set position: another engage 1 leaves the arm holding (state
+    holding, the working speed), as it was."""
+    board, inv = engaged_board()
+    inv.run(0.3)
+    assert inv.next_heartbeat()["state"] == HOLDING
+    t = board.time
+    board.send("engage", on=1)
+    inv.run(0.1)
+    assert all(sync_goal_speed(p.raw)[1] == [WORKING_SPEED] * 3 for p in inv.log.syncs(t))
+    hb = inv.next_heartbeat()
+    assert hb["engaged"] == 1 and hb["state"] == HOLDING and not hb["faults"] & FAULT["command_refused"], hb
+
+
+def test_engage_is_refused_while_a_reset_servo_is_set_up_again():
+    """Servo 2 browns out while the arm is parked (its RAM back at power-on values): from the
+    reading that finds it reset until the write that sets it up again is done, engage is
+    refused (servo_fault)."""
+    board, inv = enabled_board()
+    inv.run(0.3)
+    servo = board.bus.servo(IDS[1])
+    servo.power_off()
+    servo.power_on()
+    bus = board.app.bus
+    for _ in range(round(0.2 * 1e6 / board.poll_us)):
+        board.step(board.poll_us)
+        if bus.refit or bus.refitting:
+            break
+    assert bus.refit or bus.refitting
+    board.send("engage", on=1)
+    board.step(board.poll_us)
+    assert not board.app.engaged and board.app.refusal == REFUSAL["servo_fault"]
+
+
+def test_engage_before_parked_parks_then_goes_at_transit_speed():
+    """Enabled with the arm hanging straight down and engaged at once: it parks first (park
+    speed), then goes to the set position at the transit speed, then holds it at the working
+    speed."""
+    board = make_board(at=[512, 512, 512])
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 1.5) is not None
+    set_position(board, TARGET)
+    board.send("engage", on=1)
+    for _ in range(40):                       # the drone repeats the set position (keep-alive)
+        set_position(board, TARGET)
+        inv.run(0.2)
+        if board.heartbeats[-1]["state"] == HOLDING:
+            break
+    assert board.heartbeats[-1]["state"] == HOLDING, board.heartbeats[-1]
+    speeds = [sync_goal_speed(p.raw)[1][0] for p in inv.log.syncs()]
+    order = [s for k, s in enumerate(speeds) if k == 0 or s != speeds[k - 1]]
+    assert order == [PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED], order
