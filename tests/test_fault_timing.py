@@ -162,6 +162,24 @@ def test_tracking_fault_clears_after_a_quarter_second_of_tracking(app_lib):
     assert not reading(lib, track, bus, t + TRACK_FAULT_US, 500)              # cleared
 
 
+def test_a_standing_fault_does_not_clear_on_a_slip_after_some_tracking(app_lib):
+    """A standing fault, then 0.1 s of tracking and one reading off again: the fault still
+    stands (it clears only after 0.25 s of tracking in a row), and 0.25 s of tracking later it
+    clears."""
+    off = 500 - TRACK_TOL_UNITS - 1
+    _, lib, track, bus = tracking_watch(app_lib)
+    for k in range(30):
+        reading(lib, track, bus, k * TICK_US, off)
+    t = 30 * TICK_US
+    assert reading(lib, track, bus, t, off)
+    for k in range(1, 11):                                                   # tracking for 0.1 s
+        assert reading(lib, track, bus, t + k * TICK_US, 500)
+    t += 11 * TICK_US
+    assert reading(lib, track, bus, t, off)                                  # slipped: still standing
+    assert reading(lib, track, bus, t + TRACK_FAULT_US - 1, 500)
+    assert not reading(lib, track, bus, t + TRACK_FAULT_US, 500)
+
+
 def test_a_shaft_coming_a_quarter_of_the_way_each_reading_tracks(app_lib):
     """A shaft always 12 units behind a goal that moves on, coming 3 units nearer (a quarter
     of the distance left; Moving Speed 600 allows 13.6 units a reading) at every reading:

@@ -53,9 +53,9 @@ static inline __attribute__((always_inline)) void look_at_servo(track_t *t, cons
                 w->fault = w->good_us < TRACK_FAULT_US;
             }
         } else {
-            w->good_us = 0;
+            w->good_us = 0;   /* a standing fault clears only after TRACK_FAULT_US of tracking in a row */
             w->bad_us = w->bad_us + dt_us < w->bad_us ? UINT32_MAX : w->bad_us + dt_us;
-            w->fault = w->bad_us >= TRACK_FAULT_US;
+            w->fault = w->fault || w->bad_us >= TRACK_FAULT_US;
         }
     }
     w->last_position = s->present_position;
