@@ -238,7 +238,7 @@ def model_regressions() -> dict[str, bytes]:
         "regress-subnormal-sample-rate": edit("sample_rate = 100.0", "sample_rate = 5e-324"),
         "regress-tiny-servo-range": edit("range_deg = 300.0", "range_deg = 1e-300"),
         "regress-huge-length": edit("L3 = 73.5", "L3 = 1e300"),
-        "regress-long-decimal-length": edit("L1 = 40.0", "L1 = 0.04028633809204152"),
+        "regress-long-decimal-length": edit("L1 = 40.0", "L1 = 4.028633809204152"),
         "regress-tiny-length": edit("L2 = 65.0", "L2 = 2.2250738585072014e-308"),
     }
 
