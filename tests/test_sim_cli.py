@@ -78,11 +78,12 @@ def test_the_refused_keys_change_nothing_and_the_others_do():
                               estimates(variants.build(variants.edits("complementary", [weight]))))
 
 
-def test_a_target_never_reachable_is_named(tmp_path, capsys):
-    """300 mm out is beyond the reach L2 + L3 of the committed model (138.5 mm)."""
+def test_a_target_never_reachable_is_named_and_the_run_fails(tmp_path, capsys):
+    """300 mm out is beyond the reach L2 + L3 of the committed model (138.5 mm): named under the
+    table, exit 1."""
     (tmp_path / "far.toml").write_text('name = "far"\nkind = "bench"\n[arm]\ntarget = [300.0, 0.0, -100.0]\n')
     assert cli.main(["sim", str(tmp_path / "far.toml"), "--seconds", "1", "--settle", "1", "--preflight", "1",
-                     "--plots", ""]) == 0
+                     "--plots", ""]) == 1
     out = capsys.readouterr().out
     assert "the target (300.0, 0.0, -100.0) mm is unreachable" in out and "refused it on every tick" in out
 
