@@ -313,7 +313,7 @@ def urdf_context(m: config.Model):
 def params_context(m: config.Model):
     """Model numbers the application uses as they are (units, register values, ms)."""
     ms = lambda s: round(s * 1000)
-    lsb_per_g = 16384 >> config.ACCEL_RANGES_G[m.accel_range_g]
+    lsb_per_g = config.accel_lsb_per_g(m.accel_range_g)
     return {
         "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
         "tuck": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in tuck(m)],
@@ -348,8 +348,7 @@ def params_context(m: config.Model):
         # the estimator's starting gyro bias, base axes, rad/s
         "gyro_bias0": [float32_literal(v) for v in attitude.mounting(m) * sp.Matrix(
             [sp.pi * sp.nsimplify(d, rational=True) / 180 for d in m.imu_calibration.gyro_bias_dps])],
-        # full scale over 32768 LSB (the datasheet's 131, 65.5, 32.8, 16.4 LSB/(deg/s) rounded it)
-        "gyro_rad_per_lsb": float32_literal(sp.pi * m.gyro_range_dps / 180 / 32768),
+        "gyro_rad_per_lsb": float32_literal(sp.pi * sp.Rational(m.gyro_range_dps, 32768) / 180),   # gyro_dps_per_lsb
         "est": estimator_params(m),
     }
 

@@ -19,6 +19,17 @@ JOINTS = ("theta1", "theta2", "theta3")
 # MPU-6050 choices (register value of each setting, PS-MPU-6000A rev 3.4 section 4)
 ACCEL_RANGES_G = {2: 0, 4: 1, 8: 2, 16: 3}             # AFS_SEL
 GYRO_RANGES_DPS = {250: 0, 500: 1, 1000: 2, 2000: 3}   # FS_SEL
+
+
+def accel_lsb_per_g(range_g: int) -> int:
+    """MPU-6050 accelerometer counts per g at a full-scale range (16384 at +-2 g, halved per step)."""
+    return 16384 >> ACCEL_RANGES_G[range_g]
+
+
+def gyro_dps_per_lsb(range_dps: int) -> float:
+    """MPU-6050 gyro deg/s per count: full scale over 32768 (the datasheet's 131, 65.5, 32.8,
+    16.4 LSB/(deg/s) round it)."""
+    return range_dps / 32768
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
 RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX-12A e-manual)
 SPEED_RPM_MAX = 1023 * RPM_PER_SPEED_UNIT        # AX-12A Moving Speed register limit

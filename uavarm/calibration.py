@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model.config import ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, ACCEL_RANGES_G
+from .model.config import ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, accel_lsb_per_g, gyro_dps_per_lsb
 
 # A still window: the spread of the readings no more than the sensor's noise allows
 # (400 ug/sqrt(Hz) through the 21 Hz DLPF is about 2 mg rms; 0.005 deg/s/sqrt(Hz) 0.02 deg/s).
@@ -47,17 +47,13 @@ class AccelFit:
     residual_g: float              # rms of |corrected| - 1
 
 
-def lsb_per_g(range_g: int) -> float:
-    return 16384.0 / 2 ** ACCEL_RANGES_G[range_g]
-
-
 def window(frames: list[dict], range_g: int, range_dps: int) -> Window:
     """The mean of streamed imu_raw frames, checked still; CalibrationError if it moved."""
     if len(frames) < 20:
         raise CalibrationError(f"only {len(frames)} IMU samples came: is the IMU stream running?")
     counts = np.array([[f["ax"], f["ay"], f["az"], f["gx"], f["gy"], f["gz"]] for f in frames], dtype=float)
-    accel = counts[:, :3] / lsb_per_g(range_g)
-    gyro = counts[:, 3:] * range_dps / 32768.0
+    accel = counts[:, :3] / accel_lsb_per_g(range_g)
+    gyro = counts[:, 3:] * gyro_dps_per_lsb(range_dps)
     a_std, g_std = accel.std(axis=0).max(), gyro.std(axis=0).max()
     if a_std > STILL_ACCEL_STD_G or g_std > STILL_GYRO_STD_DPS:
         raise CalibrationError(f"the board moved (spread {a_std * 1000:.1f} mg, {g_std:.2f} deg/s; still is "
