@@ -25,7 +25,7 @@ bench: $(STAMP)
 # build/sim-report/report.md with plots. Stops with the key's name if a preset's model keys
 # are unknown to this firmware.
 sim-report: $(STAMP)
-	$(PY) -m uavarm.sim_report --out build/sim-report
+	$(PY) -m uavarm.sim.report --out build/sim-report
 
 # Fuzz harnesses (fuzz/, docs/fuzzing.md; needs clang libclang-rt-14-dev and atheris).
 fuzz: $(STAMP)

@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 
-from uavarm import ax12_sim
-from uavarm.board import Gravity, Rocking, SimBoard, baud_register
+from uavarm.sim import ax12_sim
+from uavarm.sim.board import Gravity, Rocking, SimBoard, baud_register
 
 UNIT_RAD = math.radians(300.0) / 1023      # AX-12A: 1023 position units over 300 deg
 

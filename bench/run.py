@@ -13,9 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from uavarm import cbuild, firmware, generated, m4, target
-from uavarm.board import SimBoard
+from uavarm import m4
+from uavarm.build import cbuild, firmware, generated, target
 from uavarm.model import config
+from uavarm.sim.board import SimBoard
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import motion  # noqa: E402  (bench/motion.py)

@@ -1,6 +1,6 @@
 # The firmware's C sources: the one list.
 #
-# Read by firmware_stm32/Makefile (command-line build), by uavarm/firmware.py (the host
+# Read by firmware_stm32/Makefile (command-line build), by uavarm/build/firmware.py (the host
 # build of the application, which takes APP_SOURCES and GENERATED_SOURCES) and by
 # tests/test_stm32_project.py, which checks that the CubeIDE project (.cproject source
 # folders) builds exactly these files. Plain "NAME = path path ..." lines only, paths

@@ -3,8 +3,8 @@
     .venv/bin/python fuzz/make_seeds.py
 
 Every seed is a small valid input built with the project's own Python codecs: LLCP frames
-from uavarm.llcp / uavarm.messages, status packets answered by the AX-12A simulator
-(uavarm.ax12_sim), command sessions for the whole application in the op encoding that
+from uavarm.link.llcp / uavarm.link.messages, status packets answered by the AX-12A simulator
+(uavarm.sim.ax12_sim), command sessions for the whole application in the op encoding that
 fuzz/app_link.c documents, and the model file. The folders are rebuilt; regress-* inputs found by
 the fuzzers and committed by hand are kept.
 """
@@ -20,8 +20,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from uavarm import ax12_sim, llcp, messages  # noqa: E402
+from uavarm.link import llcp, messages  # noqa: E402
 from uavarm.model import config  # noqa: E402
+from uavarm.sim import ax12_sim
 
 CORPUS = Path(__file__).resolve().parent / "corpus"
 MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "app_link": 1024, "model_loader": 16384}   # fuzz/run.py

@@ -33,7 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from uavarm import cbuild, firmware, generated  # noqa: E402
+from uavarm.build import cbuild, firmware, generated  # noqa: E402
 
 FUZZ = ROOT / "fuzz"
 SEEDS = FUZZ / "corpus"
@@ -42,7 +42,7 @@ APP_SRC = firmware.APP / "Src"
 INCLUDE_DIRS = [generated.GENERATED, firmware.APP / "Inc", OUT]   # OUT: arm_spec.h (write_arm_spec)
 
 SANITIZE = ["-g", "-O1", "-fsanitize=fuzzer,address,undefined", "-fno-sanitize-recover=all"]
-# The project's warning set (uavarm/cbuild.py), and the host build's float32 semantics.
+# The project's warning set (uavarm/build/cbuild.py), and the host build's float32 semantics.
 FLAGS = SANITIZE + cbuild.WARNING_FLAGS + ["-ffp-contract=off", "-fno-math-errno"]
 
 

@@ -1,5 +1,5 @@
 """LLCP message layouts, written once: the generator emits the C pack/unpack functions and
-uavarm.messages builds the Python codec from the same table.
+uavarm.link.messages builds the Python codec from the same table.
 
 On the wire each payload is the message id followed by the fields as a packed
 little-endian C struct (what the MRS llcp peer sends and expects). Device -> drone

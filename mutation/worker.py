@@ -20,7 +20,7 @@ from .operators import Mutant
 from .targets import FRESHNESS_TESTS, Target
 
 ROOT = Path(__file__).resolve().parents[1]
-BUILD_CHECK = ("from uavarm import firmware, generated; generated.load(); firmware.load()")
+BUILD_CHECK = ("from uavarm.build import firmware, generated; generated.load(); firmware.load()")
 
 
 @dataclass

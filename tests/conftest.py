@@ -18,7 +18,7 @@ def model():
 @pytest.fixture(scope="session")
 def gen():
     """(ffi, lib) of the committed generated C, built with the strict flags."""
-    from uavarm import generated
+    from uavarm.build import generated
     return generated.default()
 
 
@@ -40,7 +40,7 @@ def require_ros():
     machine without ROS 1, never in CI."""
     missing = None
     try:
-        from uavarm.ros_node import import_ros
+        from uavarm.link.ros_node import import_ros
         rospy = import_ros()
         import genpy  # noqa: F401  (generates the node's msg and srv classes)
         import nav_msgs.msg, sensor_msgs.msg, std_srvs.srv, tf2_ros  # noqa: E401,F401

@@ -16,8 +16,8 @@ import numpy as np
 from simboard_tools import FAULT, IDS, MODEL, PARK_SPEED, TICK, TRANSIT_SPEED, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
 from simboard_tools import pose_ok, poses_ok, shaft_units, speed_units_per_s
 import oracles
-from uavarm import messages
-from uavarm.board import SimBoard
+from uavarm.link import messages
+from uavarm.sim.board import SimBoard
 
 HB = MODEL.heartbeat_period
 TORQUE_ENABLE = 24                # AX-12A control table: Torque Enable

@@ -1,5 +1,5 @@
 """Shared tools of the end-to-end tests of the firmware application (test_servo_bus.py,
-test_app.py), which reach it only through uavarm.board.SimBoard: LLCP bytes in, servo-bus
+test_app.py), which reach it only through uavarm.sim.board.SimBoard: LLCP bytes in, servo-bus
 bytes out, simulated servos, heartbeat frames back.
 
 Every oracle here is independent of the C under test:
@@ -20,9 +20,10 @@ import dynamixel_sdk as sdk
 import numpy as np
 
 import oracles
-from uavarm import ax12_sim, messages
-from uavarm.board import SimBoard, baud_register, specific_force_up
+from uavarm.link import messages
 from uavarm.model import config
+from uavarm.sim import ax12_sim
+from uavarm.sim.board import SimBoard, baud_register, specific_force_up
 
 MODEL = config.load()
 US = 1_000_000
@@ -354,6 +355,6 @@ class Tilt:
         _, ds = self._s(t)
         roll, pitch = self.attitude(t)
         roll_rate, pitch_rate = ((b - a) * ds for a, b in zip(self.start, self.end))
-        # body rates of Z-Y-X Euler rates with no yaw (as uavarm.board.Rocking)
+        # body rates of Z-Y-X Euler rates with no yaw (as uavarm.sim.board.Rocking)
         gyro = (roll_rate, math.cos(roll) * pitch_rate, -math.sin(roll) * pitch_rate)
         return specific_force_up(roll, pitch), gyro

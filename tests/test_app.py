@@ -1,5 +1,5 @@
 """The control program (firmware_stm32/App/Src/app.c) end to end on a simulated board:
-LLCP frames in (uavarm.llcp / uavarm.messages, the Python codec), servo packets out,
+LLCP frames in (uavarm.link.llcp / uavarm.link.messages, the Python codec), servo packets out,
 simulated AX-12A shafts moving, heartbeat frames back. Simulated time only.
 
 Oracles, all independent of the C under test: the model's servo map (model/servo.py) for
@@ -24,8 +24,8 @@ from simboard_tools import (
     run_until, ready, running,
     Tilt, shaft_units, sync_goal_speed, units_to_joints,
 )
-from uavarm import llcp, messages
-from uavarm.board import Gravity
+from uavarm.link import llcp, messages
+from uavarm.sim.board import Gravity
 
 TARGET = (70.0, -20.0, -95.0)         # reachable, clear of the legs (theta1 ~ 16 deg)
 OTHER = (40.0, 45.0, -120.0)
@@ -528,7 +528,7 @@ def test_rocking_bench_is_stabilised():
     effector, from the simulated shafts by plain-geometry FK turned into the level frame
     with the true attitude (scipy), stays near the set position. A loose bound: filter and
     servo lag are the closed-loop simulator's subject."""
-    from uavarm.board import Rocking
+    from uavarm.sim.board import Rocking
     motion = Rocking(math.radians(10), math.radians(10), 0.2)
     board = make_board(motion=motion)
     board.send("enable", on=1)

@@ -12,7 +12,7 @@ import dynamixel_sdk as sdk
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from uavarm.ax12_sim import AX12, AX12Bus, SdkPort
+from uavarm.sim.ax12_sim import AX12, AX12Bus, SdkPort
 
 PH = sdk.Protocol1PacketHandler()
 E = sdk.protocol1_packet_handler     # ERRBIT_* constants

@@ -18,7 +18,7 @@ import arm_spec
 from conftest import ROOT
 from invariants import Invariants
 from simboard_tools import BusLog, make_board, ready, shaft_units, ee_of_units
-from uavarm import cbuild, firmware, generated
+from uavarm.build import cbuild, firmware, generated
 
 HARNESS = ROOT / "tests" / "csrc"
 TARGET = (0.0, 110.0, -90.0)   # joint 1 at -90 deg, reaching past the leg distance

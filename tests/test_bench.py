@@ -8,7 +8,8 @@ import importlib.util
 import pytest
 
 from conftest import ROOT, require_arm_toolchain
-from uavarm import firmware, m4
+from uavarm import m4
+from uavarm.build import firmware
 from uavarm.model import config
 
 _spec = importlib.util.spec_from_file_location("bench_run_py", ROOT / "bench" / "run.py")

@@ -11,8 +11,8 @@ number; VTOR needs the table's size rounded up to a power of two as alignment), 
 import pytest
 
 from conftest import ROOT
-from uavarm import cbuild, firmware
-from uavarm.messages import RESET_CAUSES, fault_vector_name
+from uavarm.build import cbuild, firmware
+from uavarm.link.messages import RESET_CAUSES, fault_vector_name
 
 FW = firmware.FIRMWARE
 CSRC = ROOT / "tests" / "csrc"

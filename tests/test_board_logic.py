@@ -10,7 +10,7 @@ from collections import deque
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from uavarm import cbuild, firmware
+from uavarm.build import cbuild, firmware
 
 BOARD = firmware.FIRMWARE / "Board"
 

@@ -11,7 +11,7 @@ pulses), the pin map (Core/Inc/main.h, docs/board-project.md) and board_config.h
 import pytest
 
 from conftest import ROOT
-from uavarm import cbuild, firmware
+from uavarm.build import cbuild, firmware
 from uavarm.model import config
 
 FW = firmware.FIRMWARE

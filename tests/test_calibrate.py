@@ -19,13 +19,14 @@ import time
 import numpy as np
 import pytest
 
-from uavarm import calibrate, calibration
-from uavarm.board import Gravity, Rocking
-from uavarm.calibration import CalibrationError, Window
-from uavarm.imu_model import Mpu6050Sensor
-from uavarm.link import ArmLink
+from uavarm import calibrate
+from uavarm.calibrate import fit, guide
+from uavarm.calibrate.fit import CalibrationError, Window
+from uavarm.link import ArmLink, messages
 from uavarm.model import config
-from uavarm.sitl import Sitl
+from uavarm.sim.board import Gravity, Rocking
+from uavarm.sim.imu_model import Mpu6050Sensor
+from uavarm.sim.sitl import Sitl
 
 SPEED = 2.0                        # simulated seconds per real second
 SECONDS = 1.0                      # real seconds of samples per position (2 simulated)
@@ -47,15 +48,15 @@ def test_the_fit_recovers_bias_and_scale_from_tilted_positions():
             ups.append(u / np.linalg.norm(u))
     ups += [v / np.linalg.norm(v) for v in rng.normal(size=(4, 3))]   # and some more positions
     windows = [Window(scale * u + bias, np.zeros(3), 100) for u in ups]
-    fit = calibration.fit_accel(windows)
-    assert np.allclose(fit.bias, bias, atol=1e-9) and np.allclose(fit.scale, scale, atol=1e-9)
+    accel = fit.fit_accel(windows)
+    assert np.allclose(accel.bias, bias, atol=1e-9) and np.allclose(accel.scale, scale, atol=1e-9)
 
 
 def test_the_fit_refuses_an_axis_never_turned_down():
     windows = [Window(np.array(u, dtype=float), np.zeros(3), 100)
                for u in ([0, 0, 1], [0, 0, -1], [1, 0, 0], [0.7, 0.7, 0], [0, 1, 0], [0, -1, 0])]
     with pytest.raises(CalibrationError, match="X axis was never pointed straight up and straight down"):
-        calibration.fit_accel(windows)
+        fit.fit_accel(windows)
 
 
 # ---------------------------------------------------------------- through the SITL
@@ -123,7 +124,7 @@ def test_moving_during_a_position_is_refused_and_the_model_left_as_it_was(model_
             calibrate.imu(arm, model_copy, shaking, lambda q: True, seconds=SECONDS)
         assert not arm.collect("imu_raw", 0.3), "the stream is stopped again"
     assert model_copy.read_bytes() == before
-    assert capsys.readouterr().out.count("the board moved") == calibrate.TRIES - 1
+    assert capsys.readouterr().out.count("the board moved") == guide.TRIES - 1
 
 
 def test_declining_the_diff_writes_nothing(model_copy):
@@ -171,7 +172,7 @@ def test_the_command_line_names_a_wrong_port(model_copy):
 
 
 def test_a_model_value_the_loader_refuses_is_never_written(model_copy):
-    from uavarm import model_edit
+    from uavarm.calibrate import model_edit
     before = model_copy.read_bytes()
     with pytest.raises(config.ModelError, match="imu.accel_scale"):
         model_edit.write(model_copy, {"imu.accel_scale": [1.0, 1.5, 1.0]}, lambda q: True)
@@ -181,8 +182,8 @@ def test_a_model_value_the_loader_refuses_is_never_written(model_copy):
 # ---------------------------------------------------------------- the firmware applies them
 
 def test_the_firmware_undoes_the_calibrated_bias_and_scale_and_starts_from_the_gyro_offset():
-    from uavarm import variants
-    from uavarm.mpu6050_sim import Mpu6050
+    from uavarm.build import variants
+    from uavarm.sim.mpu6050_sim import Mpu6050
     bias, scale, gyro_dps = [0.05, -0.03, 0.07], [1.02, 0.98, 1.01], [1.5, -2.0, 0.75]
     v = variants.build({"imu.accel_bias": bias, "imu.accel_scale": scale, "imu.gyro_bias_dps": gyro_dps})
     ffi, lib, m = v.ffi, v.lib, v.model
@@ -215,7 +216,7 @@ def enabled_sitl():
     s = run_sitl()
     arm = ArmLink(s.device)
     arm.enable()
-    parked = [name for name, _ in __import__("uavarm").messages.STATES].index("parked")
+    parked = [name for name, _ in messages.STATES].index("parked")
     end = time.monotonic() + 10
     while arm.next_heartbeat()["state"] != parked:
         assert time.monotonic() < end, "the arm did not park"
@@ -267,8 +268,10 @@ def test_a_datasheet_imu_calibrated_on_the_bench_holds_the_end_effector_within_3
     positions through the raw IMU stream), then flown. 31.2 mm RMS uncalibrated (seed 0, the
     same 20 s; `uavarm sim hover --estimator quaternion --imu datasheet --seconds 20`)."""
     from dataclasses import replace
-    from uavarm import scenarios, sim, variants
-    from uavarm.board import SimBoard
+    from uavarm import sim
+    from uavarm.build import variants
+    from uavarm.sim import scenarios
+    from uavarm.sim.board import SimBoard
     m = config.load()
     seed = 0
     sensor_seed = int(np.random.default_rng([seed, 3]).integers(2 ** 31))   # as sim.simulate draws it
@@ -280,10 +283,10 @@ def test_a_datasheet_imu_calibrated_on_the_bench_holds_the_end_effector_within_3
         board.run(0.3)
         board.streamed["imu_raw"].clear()
         board.run(2.0)
-        windows.append(calibration.window(board.streamed["imu_raw"], m.accel_range_g, m.gyro_range_dps))
-    fit, gyro = calibration.fit_accel(windows), calibration.gyro_bias(windows)
-    keys = {"imu.accel_bias": [round(float(v), 5) for v in fit.bias],
-            "imu.accel_scale": [round(float(v), 5) for v in fit.scale],
+        windows.append(fit.window(board.streamed["imu_raw"], m.accel_range_g, m.gyro_range_dps))
+    accel, gyro = fit.fit_accel(windows), fit.gyro_bias(windows)
+    keys = {"imu.accel_bias": [round(float(v), 5) for v in accel.bias],
+            "imu.accel_scale": [round(float(v), 5) for v in accel.scale],
             "imu.gyro_bias_dps": [round(float(v), 4) for v in gyro]}
     variant = variants.build({**variants.PRESETS["quaternion"], **keys})
     scenario = replace(scenarios.load("hover"), imu_profile="datasheet")

@@ -47,7 +47,7 @@ def test_the_catkin_classes_are_the_ones_the_node_builds(workspace, tmp_path):
     out = in_workspace(workspace, "/usr/bin/python3 -c 'from uavarm_ros.msg import ArmStatus; "
                                   "from uavarm_ros.srv import SetPosition; print(ArmStatus._md5sum, SetPosition._md5sum)'")
     assert out.returncode == 0, out.stderr
-    from uavarm import ros_node
+    from uavarm.link import ros_node
     msg, srv = ros_node.load_interfaces(PACKAGE, tmp_path / "genpy")
     assert out.stdout.split() == [msg.ArmStatus._md5sum, srv.SetPosition._md5sum]
 

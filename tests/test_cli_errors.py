@@ -16,7 +16,7 @@ import pytest
 
 from conftest import ROOT
 from uavarm import cli
-from uavarm.sitl import Sitl
+from uavarm.sim.sitl import Sitl
 
 PORT = "/dev/no-such-arm"
 

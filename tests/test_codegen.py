@@ -9,7 +9,7 @@ import pytest
 import sympy as sp
 
 from conftest import ROOT, require_arm_toolchain
-from uavarm import firmware, generated, target
+from uavarm.build import firmware, generated, target
 from uavarm.codegen import board_ioc, generate
 from uavarm.model import config, kinematics
 

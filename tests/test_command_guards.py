@@ -8,7 +8,7 @@ import pytest
 from invariants import Invariants
 from simboard_tools import FAULT, IDS, PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
 from test_fault_injection import TARGET, ReplyTap, engaged_board, set_position, with_error
-from uavarm import messages
+from uavarm.link import messages
 
 REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
 HOLDING = [name for name, _ in messages.STATES].index("holding")

@@ -29,7 +29,7 @@ import pytest
 from conftest import ROOT, require_arm_toolchain
 from hal_stubs import weak_stubs
 from test_stm32_project import ioc as ioc_of
-from uavarm import cbuild, firmware
+from uavarm.build import cbuild, firmware
 from uavarm.codegen import generate
 from uavarm.model import config
 

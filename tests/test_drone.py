@@ -1,4 +1,4 @@
-"""Drone physics of the closed-loop simulator (uavarm/drone.py): invariants of a rigid body
+"""Drone physics of the closed-loop simulator (uavarm/sim/drone.py): invariants of a rigid body
 and of a thrust-along-body-z multirotor, checked by independent means (numerical
 differentiation of positions and rotation matrices built here from elementary rotations)."""
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from uavarm import drone
+from uavarm.sim import drone
 
 G = 9.80665
 

@@ -18,7 +18,7 @@ import dynamixel_sdk as sdk
 import pytest
 from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
-from uavarm import cbuild
+from uavarm.build import cbuild
 
 ROOT = Path(__file__).resolve().parents[1]
 INC = ROOT / "firmware_stm32" / "App" / "Inc"

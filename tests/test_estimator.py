@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
 from conftest import ROOT
-from uavarm import generated
+from uavarm.build import generated
 from uavarm.codegen import generate
 from uavarm.model import attitude, config
 

@@ -7,7 +7,7 @@ step, the fault flagged in the heartbeat, and recovery once it clears.
 Oracles, independent of the C under test: the AX-12A e-manual's error byte (bit 0 input
 voltage, 1 angle limit, 2 overheating, 3 range, 4 checksum, 5 overload, 6 instruction) and
 Protocol 1.0 status framing; the MPU-6050 register map (INT_STATUS DATA_RDY_INT, int16
-full scale); the LLCP format through the Python decoder (uavarm.llcp) fed the same bytes;
+full scale); the LLCP format through the Python decoder (uavarm.link.llcp) fed the same bytes;
 plain geometry (tests/oracles.py) for poses; the arm's specification for the command semantics.
 """
 from __future__ import annotations
@@ -24,8 +24,9 @@ from simboard_tools import (
     FAULT, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, ready, running,
     shaft_units, sync_goal_speed,
 )
-from uavarm import ax12_sim, llcp, messages
-from uavarm.board import SimBoard, baud_register
+from uavarm.link import llcp, messages
+from uavarm.sim import ax12_sim
+from uavarm.sim.board import SimBoard, baud_register
 
 TARGET = (70.0, -20.0, -95.0)
 OTHER = (40.0, 45.0, -120.0)

@@ -21,8 +21,9 @@ import pytest
 from invariants import Invariants
 from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, ready, servo_c
 from test_fault_injection import TARGET, engaged_board, set_position
-from uavarm import ax12_sim, llcp, messages
-from uavarm.board import SimBoard, baud_register
+from uavarm.link import llcp, messages
+from uavarm.sim import ax12_sim
+from uavarm.sim.board import SimBoard, baud_register
 
 # The documented figures, by hand.
 TICK_US = 10_000                 # 100 Hz sample rate
@@ -130,7 +131,7 @@ def reading(lib, track, bus, t_us, pos, goal=500, speed=100, servo=0):
 
 @pytest.fixture(scope="module")
 def app_lib():
-    from uavarm import firmware
+    from uavarm.build import firmware
     return firmware.default()
 
 

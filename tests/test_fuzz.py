@@ -18,7 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import pytest
 
 from conftest import ROOT, require_clang_fuzzer
-from uavarm.messages import FAULTS
+from uavarm.link.messages import FAULTS
 
 # Seconds of fuzzing per harness in the short run; two harnesses run at a time.
 SHORT_RUN_S = {"llcp_rx": 15, "dxl_parser": 15, "app_link": 30, "model_loader": 20}

@@ -20,8 +20,8 @@ from simboard_tools import (
     FAULT, IDS, IMU_SETTLE_S, MODEL, PARK_SPEED, TICK, BusLog, make_board, ready, run_until, running,
     shaft_units, sync_goal_speed,
 )
-from uavarm import messages
-from uavarm.board import Rocking, SimBoard
+from uavarm.link import messages
+from uavarm.sim.board import Rocking, SimBoard
 
 TARGET = (70.0, -20.0, -95.0)
 REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
@@ -221,7 +221,7 @@ def test_an_imu_clock_off_by_two_percent_keeps_the_attitude(error):
     at a tick) or are skipped. The estimator integrates the measured time between the
     samples it takes, so the attitude on a rocking bench (+-10 deg at 0.3 Hz, ideal sensor,
     not engaged) stays within 0.5 deg RMS of the truth, as with the clocks in step."""
-    from uavarm.imu_model import Mpu6050Sensor
+    from uavarm.sim.imu_model import Mpu6050Sensor
     motion = Rocking(math.radians(10), math.radians(8), 0.3)
     board = SimBoard(MODEL, motion=motion, imu_clock_error=error, sensor=Mpu6050Sensor("ideal", seed=0))
     roll, pitch = board.ffi.new("float *"), board.ffi.new("float *")

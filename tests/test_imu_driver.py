@@ -1,5 +1,5 @@
 """The MPU-6050 driver (firmware_stm32/App/Src/imu_mpu6050.c) at register level, on the
-host build with the host port's I2C register file driven by uavarm.mpu6050_sim.
+host build with the host port's I2C register file driven by uavarm.sim.mpu6050_sim.
 
 Oracle: InvenSense's register map (RM-MPU-6000A rev 4.2) and product specification
 (PS-MPU-6000A rev 3.4), whose numbers are written out here: register addresses, bit
@@ -11,9 +11,9 @@ import math
 import numpy as np
 import pytest
 
-from uavarm import firmware
+from uavarm.build import firmware
 from uavarm.model import config
-from uavarm.mpu6050_sim import Mpu6050
+from uavarm.sim.mpu6050_sim import Mpu6050
 
 # RM-MPU-6000A: register addresses
 SMPLRT_DIV, CONFIG, GYRO_CONFIG, ACCEL_CONFIG = 0x19, 0x1A, 0x1B, 0x1C

@@ -1,4 +1,4 @@
-"""The MPU-6050 sensor model (uavarm/imu_model.py) against its datasheet figures.
+"""The MPU-6050 sensor model (uavarm/sim/imu_model.py) against its datasheet figures.
 
 Oracles: the numbers of PS-MPU-6000A rev 3.4 and RM-MPU-6000A rev 4.2 (typed here, not
 imported from the module under test), scipy.signal.welch for noise densities, scipy's
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from uavarm import imu_model
-from uavarm.imu_model import ImuDraw, ImuErrors, Mpu6050Sensor, Tone
+from uavarm.sim import imu_model
+from uavarm.sim.imu_model import ImuDraw, ImuErrors, Mpu6050Sensor, Tone
 
 # Datasheet figures (PS-MPU-6000A rev 3.4, 6.1 / 6.2)
 GYRO_DENSITY_DPS = 0.005

@@ -4,7 +4,7 @@ and framed by LLCP, as the board sends them; the port is a stand-in that hands o
 queued."""
 import pytest
 
-from uavarm import llcp, messages
+from uavarm.link import llcp, messages
 from uavarm.link import ArmLink, CommandRefused, HeartbeatAge
 from uavarm.model import config
 

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from oracles import arm_points
-from uavarm import llcp
+from uavarm.link import llcp
 from uavarm.link import ArmLink, CommandRefused, LinkGarbled, LinkSilent, PortNotFound
 from uavarm.model import config
-from uavarm.sitl import Sitl
+from uavarm.sim.sitl import Sitl
 
 SPEED = 2.0          # simulated seconds per real second
 TARGET = (60.0, 20.0, -120.0)
@@ -161,12 +161,12 @@ def test_attitude_feed_keeps_an_engaged_arm_engaged(sitl):
 
 @pytest.mark.parametrize("text, kind", [("level", "Gravity"), ("tilt:10,-5", "Gravity"), ("rock:10,5,0.5", "Rocking")])
 def test_scenarios_parse(text, kind):
-    from uavarm.sitl import motion_of
+    from uavarm.sim.sitl import motion_of
     assert type(motion_of(text)).__name__ == kind
 
 
 @pytest.mark.parametrize("text", ["tilt:10", "rock:1,2", "spin:3", "tilt:a,b", "rock:10,10,0", "tilt:nan,0"])
 def test_bad_scenarios_are_refused(text):
-    from uavarm.sitl import motion_of
+    from uavarm.sim.sitl import motion_of
     with pytest.raises(ValueError, match="scenario"):
         motion_of(text)

@@ -19,8 +19,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from conftest import require_arm_toolchain, skip_unless_ci
-from uavarm import cbuild
-from uavarm import llcp as pyllcp
+from uavarm.build import cbuild
+from uavarm.link import llcp as pyllcp
 
 ROOT = Path(__file__).resolve().parents[1]
 INC = ROOT / "firmware_stm32" / "App" / "Inc"
@@ -404,7 +404,8 @@ def test_long_random_stream_never_misbehaves():
 
 ASAN_CHILD = r"""
 import random, sys
-from uavarm import cbuild
+from uavarm.build import cbuild
+from uavarm.link import llcp as pyllcp
 inc, src, hdr = sys.argv[1:4]
 ffi, lib = cbuild.load("llcp_asan", [src], [hdr], include_dirs=[inc],
                        extra_flags=["-fsanitize=address,undefined", "-fno-sanitize-recover=all",

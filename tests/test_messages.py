@@ -7,7 +7,7 @@ import struct
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from uavarm import messages
+from uavarm.link import messages
 from uavarm.model.messages import MESSAGES, TX_MAX_PAYLOAD
 
 CTYPES = {"u8": ctypes.c_uint8, "u16": ctypes.c_uint16, "i16": ctypes.c_int16, "u32": ctypes.c_uint32,

@@ -19,7 +19,7 @@ import pytest
 from invariants import Invariants
 from simboard_tools import FAULT, MODEL, PARK_UNITS, UNIT_RAD, BusLog, level_ik_ok, make_board, pose_ok, \
     ready, shaft_units, units_to_joints
-from uavarm.board import Gravity, Rocking
+from uavarm.sim.board import Gravity, Rocking
 
 DEG_PER_UNIT = math.degrees(UNIT_RAD)
 KEEP_ALIVE = 0.25          # s between set_position frames (the drone's keep-alive)

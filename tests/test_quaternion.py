@@ -17,7 +17,7 @@ import pytest
 import sympy as sp
 from scipy.spatial.transform import Rotation
 
-from uavarm import firmware, generated
+from uavarm.build import firmware, generated
 from uavarm.codegen import generate
 from uavarm.model import attitude, config, quaternion
 
@@ -486,7 +486,7 @@ def test_whatever_the_link_sends_no_servo_sees_a_nan_or_an_unsafe_pose():
     from pathlib import Path
     sys.path.insert(0, str(Path(__file__).parent))
     from simboard_tools import BusLog, FAULT, make_board, pose_ok, sync_goal_speed
-    from uavarm.board import Rocking
+    from uavarm.sim.board import Rocking
 
     board = make_board(motion=Rocking(math.radians(10), math.radians(8), 0.5))
     log = BusLog(board)
@@ -534,7 +534,7 @@ CONFIGS = {
 @pytest.mark.parametrize("name", list(CONFIGS))
 def test_each_configuration_builds_and_stabilises_on_simboard(name):
     """Each selectable estimator configuration, generated and built from the model file with
-    its keys edited (uavarm.variants), on the SimBoard: bench rocking +-10/8 deg at 0.3 Hz
+    its keys edited (uavarm.build.variants), on the SimBoard: bench rocking +-10/8 deg at 0.3 Hz
     (white-noise IMU), engaged 4 s, the drone's attitude sent at 50 Hz (stamped, 15 ms late)
     when fused. End effector (plain-geometry FK of the shafts) about the centre of rotation
     with the true attitude: RMS < 3 mm; every command passes the plain-geometry checks."""
@@ -543,8 +543,8 @@ def test_each_configuration_builds_and_stabilises_on_simboard(name):
     sys.path.insert(0, str(Path(__file__).parent))
     import oracles
     from simboard_tools import BusLog, pose_ok, sync_goal_speed
-    from uavarm import variants
-    from uavarm.board import Rocking, SimBoard
+    from uavarm.build import variants
+    from uavarm.sim.board import Rocking, SimBoard
 
     v = variants.build(CONFIGS[name])
     m = v.model

@@ -1,4 +1,4 @@
-"""The ROS 1 node (uavarm.ros_node) end to end: a real roscore on a free port, the simulated
+"""The ROS 1 node (uavarm.link.ros_node) end to end: a real roscore on a free port, the simulated
 board behind a pseudo-terminal (SITL, in this process so its servo power and the frames it
 receives can be checked), the node started by `roslaunch uavarm_ros arm.launch`, and its
 services driven with rospy service proxies."""
@@ -19,10 +19,10 @@ from scipy.spatial.transform import Rotation
 
 from conftest import ROOT, require_ros
 from oracles import arm_points
-from uavarm import llcp, messages
+from uavarm.link import llcp, messages
+from uavarm.link.ros_node import ATTITUDE_TYPES, roll_pitch
 from uavarm.model import config
-from uavarm.ros_node import ATTITUDE_TYPES, roll_pitch
-from uavarm.sitl import Sitl
+from uavarm.sim.sitl import Sitl
 
 SPEED = 2.0                          # simulated seconds per real second
 TARGET_M = (0.060, 0.020, -0.120)
@@ -74,7 +74,7 @@ def ros(tmp_path_factory):
     """A roscore on a free port and this process as a ROS node; yields (rospy, msg, srv, env)."""
     rospy = require_ros()
     import rosgraph
-    from uavarm.ros_node import load_interfaces
+    from uavarm.link.ros_node import load_interfaces
     msg, srv = load_interfaces()                      # generated into build/ros by genpy
     home = tmp_path_factory.mktemp("ros_home")
     uri = f"http://127.0.0.1:{free_port()}"
@@ -225,7 +225,7 @@ def test_attitude_message_types():
     """Each ~attitude_type resolves to its class and its orientation (Imu: none when the
     orientation covariance says so, REP 145)."""
     require_ros()
-    from uavarm.ros_node import attitude_class
+    from uavarm.link.ros_node import attitude_class
     for name in ATTITUDE_TYPES:
         cls, orientation = attitude_class(name)
         assert cls._type == name
@@ -260,7 +260,7 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     print(f"parked: joints within {np.degrees(np.abs(joints(status) - park).max()):.3f} deg of park.q")
     # the arm's TF from robot_state_publisher: the end effector where the model's FK puts it
     import tf2_ros
-    from uavarm import firmware
+    from uavarm.build import firmware
     buffer = tf2_ros.Buffer()
     tf2_ros.TransformListener(buffer)
     t = buffer.lookup_transform("uav_frame", "end_effector", arm.rospy.Time(0), arm.rospy.Duration(10.0))

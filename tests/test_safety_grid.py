@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 import arm_spec
 from conftest import ROOT
 from oracles import check_pose, servo_path
-from uavarm import cbuild, firmware, generated
+from uavarm.build import cbuild, firmware, generated
 from uavarm.model import collision, config, kinematics
 
 HARNESS = ROOT / "tests" / "csrc"

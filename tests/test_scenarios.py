@@ -1,4 +1,4 @@
-"""Scenario files and flight logs (uavarm/scenarios.py): round trips and clear errors."""
+"""Scenario files and flight logs (uavarm/sim/scenarios.py): round trips and clear errors."""
 from __future__ import annotations
 
 import math
@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from uavarm import drone, scenarios
-from uavarm.scenarios import LinkParams, Scenario, ScenarioError
+from uavarm.sim import drone, scenarios
+from uavarm.sim.scenarios import LinkParams, Scenario, ScenarioError
 
 
 @pytest.mark.parametrize("name", sorted(scenarios.BUILTIN))

@@ -18,7 +18,7 @@ from invariants import Invariants
 from simboard_tools import (
     FAULT, MODEL, PARK_SPEED, PARK_UNITS, BusLog, make_board, ready, shaft_units, sync_goal_speed,
 )
-from uavarm import messages
+from uavarm.link import messages
 
 REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
 STATE = {name: k for k, (name, _) in enumerate(messages.STATES)}
@@ -237,7 +237,7 @@ def test_the_command_line_limps_stiffens_and_jogs_a_sitl():
     import subprocess
     import sys
     import threading
-    from uavarm.sitl import Sitl
+    from uavarm.sim.sitl import Sitl
     s = Sitl(speed=2.0)
     threading.Thread(target=s.run, daemon=True).start()
     run = lambda *a: subprocess.run([sys.executable, "-m", "uavarm.cli", "link", s.device, *a],

@@ -16,7 +16,7 @@ from simboard_tools import (
     UNIT_RANGE, BusLog, make_board, run_until, run_to_next_heartbeat, ready, running, sdk_rebuild,
     servo_c, sync_goal_speed,
 )
-from uavarm.board import baud_register
+from uavarm.sim.board import baud_register
 
 # AX-12A e-manual control table
 ADDR = {"return_delay_time": 5, "cw_angle_limit": 6, "temperature_limit": 11, "status_return_level": 16,

@@ -1,4 +1,4 @@
-"""The closed-loop simulator (uavarm/sim.py, variants.py, sim_report.py): its figure of
+"""The closed-loop simulator (uavarm/sim/closed_loop.py, report.py; uavarm/build/variants.py): its figure of
 merit against an independent computation, its link messages, firmware variants, and short
 closed-loop runs of every scenario with loose bounds (a benchmark, not a timed test: the
 full table is `make sim-report`)."""
@@ -10,8 +10,11 @@ import tomllib
 import numpy as np
 import pytest
 
-from uavarm import drone, messages, scenarios, sim, sim_report, variants
+from uavarm import sim
+from uavarm.build import variants
+from uavarm.link import messages
 from uavarm.model import config
+from uavarm.sim import closed_loop, drone, scenarios, report as sim_report
 
 MODEL = config.load()
 SHORT = sim.Settings(seconds=3.0, settle=2.0, preflight=2.0)
@@ -71,7 +74,7 @@ def test_a_perfectly_compensated_tilt_scores_zero():
 def test_link_attitude_messages_rate_delay_sequence_and_error():
     p = scenarios.LinkParams(rate_hz=80.0, delay_ms=20.0, jitter_ms=5.0, noise_deg=0.2, bias_deg=0.3)
     f = drone.hover(30.0, np.random.default_rng(2))
-    link = sim.LinkAttitude(p, f, np.random.default_rng(3))
+    link = closed_loop.LinkAttitude(p, f, np.random.default_rng(3))
     msgs, arrivals = [], []
     while link.next_time < 29.0:
         arrivals.append(link.next_time)

@@ -9,8 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from uavarm import cli, scenarios, sim_report, workspace
+from uavarm import cli
 from uavarm.model import config
+from uavarm.sim import scenarios, report as sim_report, workspace
 
 
 def test_sim_prints_the_table_and_writes_the_plots(tmp_path, capsys):
@@ -53,7 +54,7 @@ def test_a_key_the_estimator_does_not_read_is_refused(capsys):
 
 def estimates(variant, seconds=3.0):
     """The firmware's (roll, pitch) estimate every tick on a rocking board."""
-    from uavarm.board import Rocking, SimBoard
+    from uavarm.sim.board import Rocking, SimBoard
     board = SimBoard(variant.model, lib=(variant.ffi, variant.lib), motion=Rocking(0.2, 0.1, 0.7), record=False)
     stab = variant.ffi.addressof(board.app, "stab")
     roll, pitch = variant.ffi.new("float *"), variant.ffi.new("float *")
@@ -68,7 +69,7 @@ def estimates(variant, seconds=3.0):
 def test_the_refused_keys_change_nothing_and_the_others_do():
     """What the refusal rests on, in the firmware: the complementary weight changes nothing
     with the quaternion estimator, and does change the complementary one's estimate."""
-    from uavarm import variants
+    from uavarm.build import variants
     weight = "estimator.complementary_gyro_weight=0.5"
     assert variants.unused(variants.edits(None, [weight]), config.load().estimator)
     assert np.array_equal(estimates(variants.build({})), estimates(variants.build(variants.edits(None, [weight]))))
@@ -91,7 +92,7 @@ def test_a_target_never_reachable_is_named_and_the_run_fails(tmp_path, capsys):
 @pytest.fixture
 def stale_generated(tmp_path, monkeypatch):
     """generated/ as `make codegen` left it for another version of the model file."""
-    from uavarm import generated
+    from uavarm.build import generated
     for path in generated.GENERATED.iterdir():
         text = path.read_text()
         sha = config.load().sha256[:16]

@@ -22,7 +22,7 @@ import pytest
 
 from conftest import ROOT, require_arm_toolchain, skip_unless_ci
 from hal_stubs import weak_stubs
-from uavarm import firmware
+from uavarm.build import firmware
 from uavarm.model import config
 
 FW = ROOT / "firmware_stm32"

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from conftest import require_arm_toolchain
-from uavarm import generated, m4, target
+from uavarm import m4
+from uavarm.build import generated, target
 
 N = 120
 MAX_ULPS = 8

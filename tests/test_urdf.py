@@ -87,6 +87,6 @@ def test_urdf_limits_are_the_models():
 
 
 def test_the_ros_node_names_the_urdfs_joints():
-    from uavarm.ros_node import JOINT_NAMES
+    from uavarm.link.ros_node import JOINT_NAMES
     root = ET.parse(URDF).getroot()
     assert [j.get("name") for j in chain(root) if j.get("type") == "revolute"] == list(JOINT_NAMES)

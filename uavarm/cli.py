@@ -15,7 +15,7 @@ DEMO_KEEP_ALIVE_S = 0.25   # ... then the set position again at this period
 def demo(args) -> int:
     """The simulated board: enable, go to a target on a tilted board, print what happens in
     simulated-time order: the commands sent (->) and the heartbeats received (<-)."""
-    from .board import Gravity, SimBoard
+    from .sim.board import Gravity, SimBoard
     _require_current_code()
     board = SimBoard(motion=Gravity(math.radians(args.roll), math.radians(args.pitch)), record=False)
     target = dict(zip("xyz", args.target))
@@ -49,7 +49,7 @@ def demo(args) -> int:
 
 
 def _heartbeat_line(hb) -> str:
-    from .messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, state_name
+    from .link.messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, state_name
     q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
     refused = f" refused {REFUSALS[hb['refusal']][0]}" if 0 < hb["refusal"] < len(REFUSALS) else ""
     halted = f" after {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
@@ -94,7 +94,7 @@ def link(args) -> int:
 
 def _require_current_code() -> None:
     """Stop if generated/ was not generated from the model file the simulation loads."""
-    from . import generated
+    from .build import generated
     from .model import config
     generated.check_current(config.load())
 
@@ -195,7 +195,7 @@ def parser() -> argparse.ArgumentParser:
                     help="how the simulated IMU really sits on the base (deg), whatever the model file says "
                          "(default: as the model file says)")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
-    sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/scenarios.py)")
+    sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/sim/scenarios.py)")
     sm.add_argument("--show", action="store_true",
                     help="print the scenario as a scenario file (with --imu applied) and run nothing")
     sm.add_argument("--estimator", default=None,
@@ -246,7 +246,7 @@ def main(argv=None) -> int:
         if args.action == "jog" and args.xyz[0] not in (1, 2, 3):
             ap.error(f"jog: joint must be 1, 2 or 3, got {args.xyz[0]:g}")
     if args.command == "sitl":
-        from . import sitl
+        from .sim import sitl
         try:
             sitl.motion_of(args.scenario)
             args.imu_mounting = sitl.angles_of(args.imu_mounting) if args.imu_mounting else None
@@ -266,11 +266,11 @@ def run(args) -> int:
     if args.command == "link":
         return link(args)
     if args.command == "sim":
-        from .sim_report import sim_command
+        from .sim.report import sim_command
         return sim_command(args)
     if args.command == "workspace":
         from .model import config
-        from .workspace import plot
+        from .sim.workspace import plot
         try:
             model = config.load(args.model) if args.model else config.load()
         except config.ModelError as exc:
@@ -284,7 +284,7 @@ def run(args) -> int:
         from .calibrate import command
         return command(args)
     if args.command == "sitl":
-        from . import sitl
+        from .sim import sitl
         _require_current_code()
         return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting)
     return demo(args)

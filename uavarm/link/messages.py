@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import struct
 
-from .model.messages import FAULTS, MESSAGES, REFUSALS, RESET_CAUSES, STATES, Message
+from ..model.messages import FAULTS, MESSAGES, REFUSALS, RESET_CAUSES, STATES, Message
 
 BY_NAME = {m.name: m for m in MESSAGES}
 BY_ID = {m.id: m for m in MESSAGES}

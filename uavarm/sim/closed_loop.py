@@ -1,10 +1,10 @@
 """Closed-loop simulator: the firmware (host build) on a simulated board under a flying drone.
 
-Everything reaches the firmware as on the hardware: IMU register bytes (uavarm.imu_model
-through uavarm.mpu6050_sim), servo-bus bytes (uavarm.ax12_sim with a small-signal lag and
+Everything reaches the firmware as on the hardware: IMU register bytes (uavarm.sim.imu_model
+through uavarm.sim.mpu6050_sim), servo-bus bytes (uavarm.sim.ax12_sim with a small-signal lag and
 the compliance dead band), link bytes (LLCP: set_position kept alive every 0.25 s and, when
 the firmware fuses it, the drone's attitude at the scenario's rate, delay and error) and
-time. The drone (uavarm.drone) rotates the arm's base about its centre of rotation, at the
+time. The drone (uavarm.sim.drone) rotates the arm's base about its centre of rotation, at the
 model's mount offset from it.
 
 Figure of merit: the end effector's error in the gravity-aligned, heading-following frame
@@ -28,8 +28,8 @@ import sympy as sp
 
 from . import ax12_sim, drone, imu_model, scenarios
 from .board import SimBoard, baud_register
-from .model import kinematics
-from .variants import Variant
+from ..model import kinematics
+from ..build.variants import Variant
 
 US = 1_000_000
 KEEP_ALIVE_S = 0.25
@@ -149,7 +149,7 @@ class LinkAttitude:
 
 
 def make_servos(model, lag: float, deadband: bool):
-    from .model import servo as servo_map
+    from ..model import servo as servo_map
     out = []
     for j, s in enumerate(model.servos):
         park = float(servo_map.joint_to_units(model, j, math.radians(model.park_deg[j])))

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
-from .model import collision, config, kinematics
+from ..model import collision, config, kinematics
 
 CLASSES = ("out of reach", "valid", "body", "leg")
 COLOURS = {"out of reach": "white", "valid": "#4c9a2a", "body": "#d9534f", "leg": "#f0ad4e"}

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import cbuild, firmware
-from .model import config
-from .toml_text import toml_value
+from ..model import config
+from ..toml_text import toml_value
 
 SIM_BUILD = cbuild.ROOT / "build" / "sim"
 
@@ -146,7 +146,7 @@ def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Vari
     text = Path(base).read_text()
     for key, value in changes.items():
         text = edit_text(text, key, value, str(base))
-    from .codegen import generate   # imports SymPy: only when a variant is really built
+    from ..codegen import generate   # imports SymPy: only when a variant is really built
     digest = hashlib.sha256((text + generate._templates_digest()).encode()).hexdigest()[:16]
     out = SIM_BUILD / digest
     model_path = out / "manipulator.toml"

@@ -45,11 +45,11 @@ import threading
 import time
 from pathlib import Path
 
-from .link import ArmLink, CommandRefused, LinkError, LinkGarbled, LinkSilent, PortNotFound
+from .client import ArmLink, CommandRefused, LinkError, LinkGarbled, LinkSilent, PortNotFound
 from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
 
 PACKAGE = "uavarm_ros"
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_PACKAGE_DIR = ROOT / "ros" / PACKAGE
 DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
 FAULT_TEXT = dict(FAULTS)

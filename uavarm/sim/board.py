@@ -2,7 +2,7 @@
 servos, an MPU-6050 register file and the drone's link, in deterministic simulated time.
 
 The application is reached only through what the hardware has: link bytes, servo-bus bytes
-and the supply switch (to and from uavarm.ax12_sim), IMU registers (uavarm.mpu6050_sim),
+and the supply switch (to and from uavarm.sim.ax12_sim), IMU registers (uavarm.sim.mpu6050_sim),
 the tick interrupt and the clock. Everything the board says comes back as link bytes.
 
     board = SimBoard()
@@ -18,8 +18,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from . import ax12_sim, firmware, llcp, messages
-from .model import attitude, config, servo as servo_map
+from ..build import firmware
+from ..link import llcp, messages
+from . import ax12_sim
+from ..model import attitude, config, servo as servo_map
 from .imu_model import Mpu6050Sensor
 from .mpu6050_sim import Mpu6050
 
@@ -103,7 +105,7 @@ class SimBoard:
     and still), Rocking, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
     the last heartbeats (long runs such as the SITL); sensor: the MPU-6050's sensor model
-    (uavarm.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
+    (uavarm.sim.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
     gives the base frame's attitude(t) and imu(t) in base axes; the board turns the latter
     into the IMU's axes with the model's mounting rotation (or imu_mounting_rpy_deg, the
     hardware as it is, for calibration) and the sensor model samples it at the chip's

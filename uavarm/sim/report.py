@@ -1,7 +1,7 @@
 """Tables of the closed-loop simulator: `uavarm sim` (one scenario) and `make sim-report`
 (every scenario x estimator preset x seeds), with plots.
 
-    python -m uavarm.sim_report --out build/sim-report   # what `make sim-report` runs
+    python -m uavarm.sim.report --out build/sim-report   # what `make sim-report` runs
 """
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import generated, scenarios, sim, variants
+from ..build import generated, variants
+from . import closed_loop, scenarios
 
 REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
 REPORT_ESTIMATORS = ("complementary", "quaternion", "link")
@@ -40,7 +41,7 @@ class Row:
     ticks: int = 0                   # ticks recorded (from engage)
 
 
-def summarise(runs: list[sim.Run], wall_s: float = 0.0) -> Row:
+def summarise(runs: list[closed_loop.Run], wall_s: float = 0.0) -> Row:
     """Pooled over the seeds' scored samples: RMS, 95th percentile and maximum of |e|."""
     e = np.concatenate([np.linalg.norm(r.error_mm[r.scored], axis=1) for r in runs])
     a = np.concatenate([np.linalg.norm(np.degrees(r.est_att[r.scored] - r.true_att[r.scored]), axis=1)
@@ -95,7 +96,7 @@ def _run_one(job):
     scenario, changes, label, seed, settings = job
     variant = variants.build(changes)
     t0 = time.monotonic()
-    run = sim.simulate(scenario, variant, seed=seed, settings=settings, label=label)
+    run = closed_loop.simulate(scenario, variant, seed=seed, settings=settings, label=label)
     return run, time.monotonic() - t0
 
 
@@ -114,7 +115,7 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
-def plot_run(run: sim.Run, out_dir: Path) -> list[Path]:
+def plot_run(run: closed_loop.Run, out_dir: Path) -> list[Path]:
     """Error over time and estimated vs true attitude of one run, as PNG files."""
     import matplotlib
     matplotlib.use("Agg")
@@ -168,7 +169,7 @@ def build_variants(estimators, sets) -> dict[str, dict]:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m uavarm.sim_report",
+    ap = argparse.ArgumentParser(prog="python -m uavarm.sim.report",
                                  description="The closed-loop simulator's full table (make sim-report)")
     ap.add_argument("--out", type=Path, default=Path("build/sim-report"))
     ap.add_argument("--scenarios", nargs="+", default=list(REPORT_SCENARIOS))
@@ -185,7 +186,7 @@ def main(argv=None) -> int:
     except (variants.VariantError, scenarios.ScenarioError, generated.StaleCode) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    settings = replace(sim.Settings(), seconds=args.seconds)
+    settings = replace(closed_loop.Settings(), seconds=args.seconds)
     jobs = [(loaded[s], changes[e], e, seed, settings)
             for s in args.scenarios for e in args.estimators for seed in range(args.seeds)]
     t0 = time.monotonic()
@@ -207,11 +208,11 @@ def main(argv=None) -> int:
     settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
                      f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
                      f"into the flight and {settings.settle:.0f} s settling; main loop every {settings.poll_us} us; "
-                     f"servo lag {sim.servo_lag_s() * 1e3:.1f} ms; IMU profile per scenario "
+                     f"servo lag {closed_loop.servo_lag_s() * 1e3:.1f} ms; IMU profile per scenario "
                      f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
                      f"extra model edits: {args.sets or 'none'}")
     md = ["# Closed-loop simulator report", "", "Command: `make sim-report` "
-          f"(`python -m uavarm.sim_report {' '.join(argv or sys.argv[1:])}`)", "", settings_line, "",
+          f"(`python -m uavarm.sim.report {' '.join(argv or sys.argv[1:])}`)", "", settings_line, "",
           "End-effector error |e| in the gravity-aligned, heading-following frame, pooled over the seeds; "
           "attitude error = |estimate - truth| of (roll, pitch).", "", markdown_table(rows), "", *remarks,
           f"Wall time: {time.monotonic() - t0:.0f} s with {args.jobs} workers. Plots: `plots/`.", ""]
@@ -240,7 +241,7 @@ def sim_command(args) -> int:
     except (variants.VariantError, scenarios.ScenarioError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    settings = replace(sim.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
+    settings = replace(closed_loop.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
                        preflight=args.preflight,
                        drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude])
     label = label_of(args.estimator, args.sets)
@@ -263,7 +264,7 @@ def sim_command(args) -> int:
     for line in notes(rows[-1], scenario.target):
         print(line)
     if getattr(args, "export_log", None):
-        scenarios.write_csv(sim.scenario_flight(scenario, args.seed, settings), Path(args.export_log))
+        scenarios.write_csv(closed_loop.scenario_flight(scenario, args.seed, settings), Path(args.export_log))
         print(f"wrote {args.export_log} (replay it with a scenario file: kind = \"replay\", "
               f"[motion] csv = ...)")
     if args.plots:

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import cffi
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 BUILD_DIR = ROOT / "build" / "host"
 
 # The warning set every C file of the project must pass, on the host and on the target.

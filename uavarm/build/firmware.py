@@ -1,5 +1,5 @@
 """The whole firmware application (firmware_stm32/App + generated/) built for the host with
-the host port (uavarm/csrc), via cffi: the code the STM32 runs, driven from Python."""
+the host port (uavarm/build/csrc), via cffi: the code the STM32 runs, driven from Python."""
 from __future__ import annotations
 
 import re

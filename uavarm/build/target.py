@@ -13,10 +13,10 @@ M4_CFLAGS = [f for f in cbuild.COMMON_FLAGS if not f.startswith("-O")]
 
 def reference_defines(m) -> list[str]:
     """-D flags giving bench/reference.c the model's numbers (it writes none itself)."""
-    from .model import filters
+    from ..model import filters
     f = lambda v: f"{float(v)!r}f"
     arr = lambda vs: "{" + ",".join(f(v) for v in vs) + "}"
-    from .model import attitude, servo
+    from ..model import attitude, servo
     sections = filters.sensor_filters(m)
     accel, gyro = sections["accel"][0], sections["gyro"][0]
     mount = "{" + ",".join(arr(float(v) for v in row) for row in attitude.mounting(m).tolist()) + "}"

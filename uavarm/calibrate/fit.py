@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .model.config import ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, accel_lsb_per_g, gyro_dps_per_lsb
+from ..model.config import ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, accel_lsb_per_g, gyro_dps_per_lsb
 
 # A still window: the spread of the readings no more than the sensor's noise allows
 # (400 ug/sqrt(Hz) through the 21 Hz DLPF is about 2 mg rms; 0.005 deg/s/sqrt(Hz) 0.02 deg/s).

@@ -5,7 +5,7 @@ rev 3.4), independently of the firmware's driver: WHO_AM_I reads 0x68, the chip 
 asleep (PWR_MGMT_1 = 0x40) and its data registers stay at 0 until woken, and samples are
 big-endian int16 scaled by the full-scale range the configuration registers select; each
 sample sets DATA_RDY_INT in INT_STATUS, which a read of INT_STATUS clears (register map 4.16).
-The values it latches come from the sensor model (uavarm.imu_model: noise, bias, scale,
+The values it latches come from the sensor model (uavarm.sim.imu_model: noise, bias, scale,
 vibration, the low-pass filter and the decimation that CONFIG and SMPLRT_DIV select).
 """
 from __future__ import annotations

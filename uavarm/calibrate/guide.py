@@ -12,9 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import calibration, model_edit
-from .calibration import CalibrationError, Window
-from .model import config
+from . import fit, model_edit
+from .fit import CalibrationError, Window
+from ..model import config
 
 # The six positions: each IMU axis straight up, then straight down (the axes printed on
 # the MPU-6050 breakout).
@@ -33,7 +33,7 @@ def _still_window(arm, model, ask, text: str, seconds: float) -> Window:
     for attempt in range(TRIES):
         ask(text)
         try:
-            return calibration.window(arm.collect("imu_raw", seconds), model.accel_range_g, model.gyro_range_dps)
+            return fit.window(arm.collect("imu_raw", seconds), model.accel_range_g, model.gyro_range_dps)
         except CalibrationError as exc:
             if attempt == TRIES - 1:
                 raise
@@ -54,15 +54,15 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
             windows.append(w)
     finally:
         arm.stream(imu_every=0)
-    fit = calibration.fit_accel(windows)
-    gyro = calibration.gyro_bias(windows)
-    print(f"accelerometer: bias ({', '.join(f'{b * 1000:+.1f}' for b in fit.bias)}) mg, "
-          f"scale ({', '.join(f'{s:.4f}' for s in fit.scale)}), fit rms {fit.residual_g * 1000:.2f} mg over "
+    accel = fit.fit_accel(windows)
+    gyro = fit.gyro_bias(windows)
+    print(f"accelerometer: bias ({', '.join(f'{b * 1000:+.1f}' for b in accel.bias)}) mg, "
+          f"scale ({', '.join(f'{s:.4f}' for s in accel.scale)}), fit rms {accel.residual_g * 1000:.2f} mg over "
           f"{len(windows)} positions")
     print(f"gyro zero-rate offset: ({', '.join(f'{g:+.2f}' for g in gyro)}) deg/s")
     return model_edit.write(model_path, {
-        "imu.accel_bias": [round(float(b), 4) for b in fit.bias],
-        "imu.accel_scale": [round(float(s), 5) for s in fit.scale],
+        "imu.accel_bias": [round(float(b), 4) for b in accel.bias],
+        "imu.accel_scale": [round(float(s), 5) for s in accel.scale],
         "imu.gyro_bias_dps": [round(float(g), 3) for g in gyro],
     }, confirm)
 
@@ -85,7 +85,7 @@ def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibr
     if abs(np.linalg.norm(up) - 1.0) > 0.03:
         raise CalibrationError(f"the calibrated accelerometer reads {np.linalg.norm(up):.3f} g at rest, not 1 g: "
                                "run `uavarm calibrate imu` first")
-    roll, pitch = calibration.mounting_from_gravity(up)
+    roll, pitch = fit.mounting_from_gravity(up)
     yaw = model.imu_mounting_rpy_deg[2]
     print(f"IMU on the base: roll {roll:+.2f} deg, pitch {pitch:+.2f} deg (yaw {yaw:+.2f} deg kept: "
           "gravity does not show it)")
@@ -164,7 +164,7 @@ def terminal_confirm(question: str) -> bool:
 
 def command(args) -> int:
     import sys
-    from .link import ArmLink, LinkError
+    from ..link import ArmLink, LinkError
     path = Path(args.model) if args.model else config.DEFAULT_MODEL
     confirm = (lambda q: True) if args.yes else terminal_confirm
     try:

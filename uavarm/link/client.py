@@ -127,7 +127,7 @@ class ArmLink:
 
     def __init__(self, port, baud: int = 115200, *, silence: float | None = None):
         import serial
-        from .model import config
+        from ..model import config
         period = config.load().heartbeat_period
         if silence is None:
             silence = 3 * period

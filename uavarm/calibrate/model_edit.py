@@ -8,7 +8,7 @@ from pathlib import Path
 
 import tomlkit
 
-from .model import config
+from ..model import config
 
 
 def edited(path: Path, values: dict[str, object]) -> tuple[str, str]:

@@ -8,7 +8,7 @@ prints them):
     [motion]                    # the kind's parameters, all optional but `csv`
     gust_mps = 2.0
     [imu]
-    profile = "calibrated"      # uavarm.imu_model.PROFILES
+    profile = "calibrated"      # uavarm.sim.imu_model.PROFILES
     vibration = true            # propeller tones (default: off on the bench, on in flight)
     [link]                      # the drone_attitude messages (sent when the firmware fuses them)
     rate_hz = 100.0             # >= 50
@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from . import drone, imu_model
-from .toml_text import toml_value
+from ..toml_text import toml_value
 
 KINDS = {"bench": drone.bench, "hover": drone.hover, "manoeuvre": drone.manoeuvre}
 CSV_COLUMNS = ("t", "roll", "pitch", "ax", "ay", "az")
