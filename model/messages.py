@@ -50,7 +50,9 @@ MESSAGES = (
             (("seq", "u16"), ("stamp_us", "u32"), ("roll", "f32"), ("pitch", "f32")),
             "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
             "seq counts up by one per message, stamp_us is the drone's clock. Like every frame sent "
-            "to the arm it keeps the link alive; it is not yet fused into the arm's estimate"),
+            "to the arm it keeps the link alive; the link estimator (estimator.kind = \"link\") fuses it. "
+            "Signs as REP 103 (x forward, y left, z up): roll positive right side down, pitch positive "
+            "nose down (a flight controller's FRD pitch with its sign flipped)"),
     Message("jog", 0x14, "to_arm", (("joint", "u8"), ("mode", "u8"), ("value", "f32")),
             "service (enabled, not engaged): move joint 1-3 at park speed, mode 0 to the angle value "
             "(rad), mode 1 by value servo units from its goal; checked like every move (limits, body, "

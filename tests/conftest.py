@@ -40,7 +40,7 @@ def require_ros():
     machine without ROS 1, never in CI."""
     missing = None
     try:
-        from uavarm.link.ros_node import import_ros
+        from uavarm.link.ros_node import STD_MSGS_DEFINITIONS, import_ros
         rospy = import_ros()
         import genpy  # noqa: F401  (generates the node's msg and srv classes)
         import nav_msgs.msg, sensor_msgs.msg, std_srvs.srv, tf2_ros  # noqa: E401,F401
@@ -50,16 +50,18 @@ def require_ros():
         missing = next((tool for tool in ("roscore", "roslaunch") if shutil.which(tool) is None), None)
     if missing is None and not Path("/usr/lib/robot_state_publisher/robot_state_publisher").exists():
         missing = "robot_state_publisher"
+    if missing is None and not STD_MSGS_DEFINITIONS.exists():
+        missing = "ros-std-msgs"
     if missing is not None:
         packages = ("ros-core python3-rospy python3-std-srvs python3-geometry-msgs python3-sensor-msgs "
-                    "python3-nav-msgs python3-genpy ros-robot-state-publisher python3-tf2-ros")
+                    "python3-nav-msgs python3-genpy ros-robot-state-publisher python3-tf2-ros ros-std-msgs")
         if os.environ.get("CI"):
             pytest.fail(f"ROS 1 ({missing}) missing in CI: .ci/run must install {packages}")
         pytest.skip(f"ROS 1 not installed ({missing} missing): apt-get install {packages}")
     return rospy
 
 
-CATKIN_PACKAGES = "catkin ros-message-generation python3-gencpp catkin-lint"
+CATKIN_PACKAGES = "catkin ros-message-generation python3-gencpp catkin-lint ros-std-msgs libstd-msgs-dev"
 
 
 def require_catkin():
@@ -68,6 +70,8 @@ def require_catkin():
     missing = next((tool for tool in ("catkin_make", "catkin_lint") if shutil.which(tool) is None), None)
     if missing is None and not Path("/usr/share/message_generation/cmake").exists():
         missing = "message_generation"
+    if missing is None and not Path("/usr/include/std_msgs/Header.h").exists():
+        missing = "libstd-msgs-dev"
     if missing is not None:
         if os.environ.get("CI"):
             pytest.fail(f"{missing} missing in CI: .ci/run must install {CATKIN_PACKAGES}")

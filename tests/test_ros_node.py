@@ -46,6 +46,27 @@ def test_roll_pitch_of_quaternions_match_scipy():
         roll_pitch(math.nan, 0.0, 0.0, 1.0)
 
 
+
+def test_the_sign_conventions_written_in_the_docs_hold():
+    """docs/ros.md, "Frames and signs": REP 103 body axes (x forward, y left, z up); a drone
+    whose nose dips has positive pitch, one whose right side dips has positive roll; the
+    same attitude in a flight controller's FRD body frame has the opposite pitch."""
+    a = math.radians(12.0)
+    nose_down = Rotation.from_rotvec([0.0, a, 0.0])        # about the left axis
+    assert nose_down.apply([1.0, 0.0, 0.0])[2] < 0         # the nose points below the horizon
+    roll, pitch = roll_pitch(*nose_down.as_quat())
+    assert abs(roll) < 1e-12 and abs(pitch - a) < 1e-12
+    right_down = Rotation.from_rotvec([a, 0.0, 0.0])       # about the forward axis
+    assert right_down.apply([0.0, -1.0, 0.0])[2] < 0       # the right side dips
+    roll, pitch = roll_pitch(*right_down.as_quat())
+    assert abs(roll - a) < 1e-12 and abs(pitch) < 1e-12
+    # FRD body in an NED world (PX4, ArduPilot): the same physical attitude, the frames turned
+    # half a turn about x; nose-down is negative pitch there
+    flip = Rotation.from_rotvec([math.pi, 0.0, 0.0])
+    frd = flip * nose_down * flip.inv()
+    assert abs(frd.as_euler("ZYX")[1] + a) < 1e-12
+
+
 # ------------------------------------------------------------------ fixtures
 
 def free_port() -> int:
@@ -244,6 +265,8 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     arm = start_arm()
     status = arm.wait_status(lambda s: True, 2.0)
     assert status is not None and not status.enabled and not status.engaged and status.fault_names == []
+    assert status.header.frame_id == "arm_base" and status.attitude_source == "imu"
+    assert abs(status.header.stamp.to_sec() - arm.rospy.Time.now().to_sec()) < 5.0
     assert status.reset_cause == "power_on" and status.last_fault == ""
     js = arm.joint_states.get(timeout=10)          # each heartbeat also as a JointState
     assert list(js.name) == ["arm_joint1", "arm_joint2", "arm_joint3"] and len(js.position) == 3
@@ -333,7 +356,7 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
     rospy = arm.rospy
     roll, pitch, yaw = 0.10, -0.05, 0.7
     x, y, z, w = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_quat()
-    pub = rospy.Publisher(f"/{arm.ns}/odometry/odom_main", Odometry, queue_size=1)
+    pub = rospy.Publisher(f"/{arm.ns}/estimation_manager/odom_main", Odometry, queue_size=1)
     odom = Odometry()
     odom.pose.pose.orientation.x, odom.pose.pose.orientation.y = x, y
     odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = z, w
@@ -358,6 +381,8 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
         t0, n0 = time.monotonic(), len(arm.tap.attitudes)
         held = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)
         assert held is None, f"the engaged arm parked while the attitude was forwarded: {held}"
+        fusing = arm.wait_status(lambda s: True, 1.0)
+        assert fusing.attitude_source == "drone" and fusing.header.frame_id == "arm_base"
         window = [f for t, f in arm.tap.attitudes[n0:]]
         rate = len(window) / (time.monotonic() - t0)
     finally:
@@ -374,7 +399,9 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
     # the drone stops sending: the board parks after link.silence_timeout, the node reports it
     status = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)
     assert status is not None, "the arm did not park when the link fell silent"
-    assert "link_lost" in status.fault_names and status.enabled
+    assert "link_lost" in status.fault_names and status.enabled and status.attitude_source == "imu"
+    assert "forwarding the drone's attitude from /" + arm.ns + "/estimation_manager/odom_main" in arm.log()
+    assert "the board runs on its own IMU only" in arm.log()
     end = time.monotonic() + 10
     while "fault link_lost" not in arm.log() and time.monotonic() < end:
         time.sleep(0.1)

@@ -9,14 +9,16 @@ Interface (private names, under the node: /<uav_name>/arm/...):
 - `~status` (uavarm_ros/ArmStatus): every fresh heartbeat (the link drops those queued longer
   than a heartbeat period; a board restart is logged as a warning). A message of this package
   rather than diagnostic_msgs key/value strings, so consumers get typed fields (flags, joints,
-  set position, counters) and the fault bits by name; primitive fields only, because Debian's
-  ROS packages ship no .msg sources to build a std_msgs/Header from. New fault bits (for
-  example link_lost when the arm parked after a silent link) are also logged as warnings.
-- the drone's attitude (`~attitude_topic`, `~attitude_type`: nav_msgs/Odometry,
+  set position, counters) and the fault bits by name; its header's frame_id is `arm_base`
+  (the URDF's), and `attitude_source` says whether the drone's attitude is being forwarded
+  ("drone") or the board runs on its own IMU only ("imu"; each change is logged). New fault
+  bits (for example link_lost when the arm parked after a silent link) are logged as warnings.
+- the drone's attitude (`~attitude_topic`, default `estimation_manager/odom_main`, the MRS UAV
+  System's estimated state; `~attitude_type`: nav_msgs/Odometry,
   sensor_msgs/Imu or geometry_msgs/QuaternionStamped): the orientation quaternion as Z-Y-X
   roll and pitch, the latest one forwarded with ArmLink.send_attitude at `~attitude_rate` Hz
   (default 100, at least 50) while it is fresher than `~attitude_timeout` s. The board counts
-  it as keep-alive (fusion comes later). With no fresh attitude and `~keep_alive` true, an
+  it as keep-alive, and a firmware built with the link estimator fuses it. With no fresh attitude and `~keep_alive` true, an
   engaged arm is kept alive by repeating its set position every `~keep_alive_period` s.
 
 Parameters: `~port` (/dev/ttyACM0), `~baud` (115200), the attitude ones above,
@@ -52,6 +54,11 @@ PACKAGE = "uavarm_ros"
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_PACKAGE_DIR = ROOT / "ros" / PACKAGE
 DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
+# std_msgs/Header.msg and its siblings (Debian's ros-std-msgs): ArmStatus has a Header
+STD_MSGS_DEFINITIONS = Path("/usr/share/std_msgs/msg")
+# the frame of ArmStatus: the URDF's link at the arm's base
+STATUS_FRAME = "arm_base"
+DEFAULT_ATTITUDE_TOPIC = "estimation_manager/odom_main"
 FAULT_TEXT = dict(FAULTS)
 
 # ~attitude_type -> (module, class, the orientation quaternion of a message or None)
@@ -120,7 +127,7 @@ def build_interfaces(package_dir=DEFAULT_PACKAGE_DIR, build_dir=None) -> Path:
         if stamp.exists() and stamp.read_text() == digest:
             return build_dir
         tmp = Path(tempfile.mkdtemp(prefix=".gen-", dir=build_dir))
-        search_path = {PACKAGE: [str(package_dir / "msg")]}
+        search_path = {PACKAGE: [str(package_dir / "msg")], "std_msgs": [str(STD_MSGS_DEFINITIONS)]}
         for kind, generator, files in kinds:
             if not files:
                 continue
@@ -279,7 +286,7 @@ class ArmNode:
         self.keep_alive_period = float(rospy.get_param("~keep_alive_period", 0.2))
         if not self.attitude_rate >= 50:
             raise ValueError(f"~attitude_rate must be at least 50 Hz, got {self.attitude_rate}")
-        topic = rospy.get_param("~attitude_topic", "odometry/odom_main")
+        topic = rospy.get_param("~attitude_topic", DEFAULT_ATTITUDE_TOPIC)
         att_type = rospy.get_param("~attitude_type", "nav_msgs/Odometry")
         att_class, self._orientation = attitude_class(att_type)
 
@@ -288,6 +295,8 @@ class ArmNode:
         self._reopen_at = 0.0
         self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
         self._attitude = None                     # (roll, pitch, stamp_us or None, received)
+        self._topic = rospy.resolve_name(topic)
+        self.attitude_source = "imu"              # what the last step forwarded: "drone" or "imu"
         self._last_hb = None
         self._last_hb_time = None
         self._silent = False
@@ -354,7 +363,9 @@ class ArmNode:
                 self._on_heartbeat(hb, now)
             self._check_silence(now)
             att = self._attitude
-            if att is not None and now - att[3] <= self.attitude_timeout:
+            fresh = att is not None and now - att[3] <= self.attitude_timeout
+            self._report_source("drone" if fresh else "imu")
+            if fresh:
                 link.send_attitude(att[0], att[1], att[2])
             elif link.engaged:
                 self.rospy.logwarn_throttle(5.0, "arm: engaged but no attitude on the attitude topic for "
@@ -366,6 +377,16 @@ class ArmNode:
             pass                                    # failed already (a service thread saw it)
         except self._serial_errors as exc:
             self._lose(exc, now)
+
+    def _report_source(self, source: str) -> None:
+        if source == self.attitude_source:
+            return
+        self.attitude_source = source
+        if source == "drone":
+            self.rospy.loginfo("arm: forwarding the drone's attitude from %s to the board", self._topic)
+        else:
+            self.rospy.logwarn("arm: no attitude on %s for %.2f s: the board runs on its own IMU only",
+                               self._topic, self.attitude_timeout)
 
     def _check_silence(self, now: float) -> None:
         if self._last_hb_time is not None and now - self._last_hb_time > self.link.silence and not self._silent:
@@ -391,7 +412,8 @@ class ArmNode:
         self._last_hb = hb
 
         m = self.msg.ArmStatus()
-        m.stamp = rospy.Time.now()
+        m.header.stamp, m.header.frame_id = rospy.Time.now(), STATUS_FRAME
+        m.attitude_source = self.attitude_source
         m.enabled, m.engaged, m.unreachable = bool(hb["enabled"]), bool(hb["engaged"]), bool(hb["unreachable"])
         m.seq, m.uptime, m.state = hb["seq"], hb["uptime_ms"] / 1000.0, hb["state"]
         m.refusal = REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else ""
@@ -405,7 +427,7 @@ class ArmNode:
                                                              hb["servo_timeouts"])
         self.status_pub.publish(m)
         js = self._joint_state()
-        js.header.stamp = m.stamp
+        js.header.stamp = m.header.stamp
         js.name = list(JOINT_NAMES)
         js.position = list(m.joints)
         self.joint_pub.publish(js)
