@@ -7,7 +7,7 @@ import pytest
 
 from invariants import Invariants
 from simboard_tools import FAULT, IDS, PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
-from test_fault_injection import TARGET, ReplyTap, engaged_board, set_position, with_error
+from test_fault_injection import TARGET, ReplyTap, at, engaged_board, set_position, with_error
 from uavarm.link import messages
 
 REFUSAL = {name: k for k, (name, _) in enumerate(messages.REFUSALS)}
@@ -103,3 +103,29 @@ def test_engage_before_parked_parks_then_goes_at_transit_speed():
     speeds = [sync_goal_speed(p.raw)[1][0] for p in inv.log.syncs()]
     order = [s for k, s in enumerate(speeds) if k == 0 or s != speeds[k - 1]]
     assert order == [PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED], order
+
+
+def test_a_new_set_position_while_parking_before_engage_waits_for_the_park():
+    """Engage taken while the arm still parks (engage parks first), then a new set position
+    before the park is done: the park is finished, then the arm goes to the new set position
+    and holds it there (not left at the goal unstabilised, reported as parking forever)."""
+    board = make_board(at=[512, 512, 512])                  # away from the park pose
+    inv = Invariants(board, BusLog(board))
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: ready(board), 2.0) is not None
+    parking = [name for name, _ in messages.STATES].index("parking")
+    assert inv.next_heartbeat()["state"] == parking
+    board.send("engage", on=1)
+    hb = inv.next_heartbeat()
+    assert hb["engaged"] == 1 and hb["state"] == parking, hb
+    for _ in range(40):                                      # 10 s, the set position as keep-alive
+        set_position(board, TARGET)
+        inv.run(0.25)
+        if board.heartbeats[-1]["state"] == HOLDING:
+            break
+    hb = board.heartbeats[-1]
+    assert hb["state"] == HOLDING and hb["engaged"] == 1, f"never held the set position: {hb}"
+    for _ in range(4):
+        set_position(board, TARGET)
+        inv.run(0.25)
+    assert at(board, TARGET)

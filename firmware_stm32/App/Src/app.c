@@ -118,9 +118,11 @@ static void on_set_position(app_t *app, const msg_set_position_t *m)
     taken(app);
     app->unreachable = !motion_goal_for(&app->motion, p, q);   /* from a level base, with the goals' margin */
     if (app->unreachable) return;
-    /* a repeated set position (keep-alive) changes nothing; a new one, engaged, needs a route */
+    /* a repeated set position (keep-alive) changes nothing; a new one, engaged and past the
+     * park that engage begins with, needs a route now (during that park it is only stored:
+     * the arm heads for it once parked, as for the set position engage found) */
     const bool moved = memcmp(p, app->set_position, sizeof p) != 0;
-    if (moved && app->engaged && !head_for(app, p)) {
+    if (moved && app->engaged && app->parked && !head_for(app, p)) {
         refuse(app, MSG_REFUSAL_NO_ROUTE);
         return;
     }
