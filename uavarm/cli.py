@@ -65,6 +65,8 @@ def _heartbeat_line(hb) -> str:
 def link(args) -> int:
     from .link import ArmLink, LinkError
     try:
+        if args.action == "shell":
+            return _shell(args)
         with ArmLink(args.port, args.baud) as arm:
             if args.action == "monitor":
                 while True:
@@ -90,6 +92,21 @@ def link(args) -> int:
     except KeyboardInterrupt:
         pass
     return 0
+
+
+def _shell(args) -> int:
+    from .link.shell import prompt_lines, run_shell
+    if args.script is None and sys.stdin.isatty():
+        return run_shell(args.port, args.baud, prompt_lines(), interactive=True)
+    if args.script is None or args.script == "-":
+        return run_shell(args.port, args.baud, sys.stdin, interactive=False)
+    try:
+        with open(args.script) as f:
+            lines = f.readlines()
+    except OSError as exc:
+        print(f"error: --script {args.script}: {exc.strerror}", file=sys.stderr)
+        return 1
+    return run_shell(args.port, args.baud, lines, interactive=False)
 
 
 def _require_current_code() -> None:
@@ -162,13 +179,18 @@ def parser() -> argparse.ArgumentParser:
     lk = sub.add_parser("link", help="command a board (or a SITL) over its serial port")
     lk.add_argument("port", help="serial device, e.g. /dev/ttyACM0 or the path `uavarm sitl` prints")
     lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor",
-                                       "limp", "stiff", "jog"],
+                                       "limp", "stiff", "jog", "shell"],
                     help="limp: torque off (positions still read), stiff: torque back on, jog J DEG: joint J "
-                         "(1-3) to DEG at park speed; service commands, refused while engaged")
+                         "(1-3) to DEG at park speed (service commands, refused while engaged); shell: one "
+                         "connection for many commands, typed at a prompt or read from --script or standard "
+                         "input (a CSV of targets X,Y,Z[,SECONDS] too), the arm kept engaged in between")
     lk.add_argument("xyz", type=FINITE, nargs="*", metavar="X Y Z",
                     help="goto: target in mm; jog: JOINT DEG (degrees)")
     lk.add_argument("--baud", type=_integer(1), default=115200,
                     help="bit/s, ignored by USB CDC; for UART adapters (default: %(default)s)")
+    lk.add_argument("--script", default=None, metavar="FILE",
+                    help="shell: commands or targets from FILE ('-': standard input; default: a prompt when "
+                         "standard input is a terminal, else standard input)")
     lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
@@ -245,6 +267,8 @@ def main(argv=None) -> int:
             ap.error("goto takes exactly X Y Z, jog takes JOINT DEG; the other actions take none")
         if args.action == "jog" and args.xyz[0] not in (1, 2, 3):
             ap.error(f"jog: joint must be 1, 2 or 3, got {args.xyz[0]:g}")
+        if args.script is not None and args.action != "shell":
+            ap.error("--script is an option of shell")
     if args.command == "sitl":
         from .sim import sitl
         try:

@@ -47,7 +47,8 @@ import threading
 import time
 from pathlib import Path
 
-from .client import ArmLink, CommandRefused, LinkError, LinkGarbled, LinkSilent, PortNotFound
+from .client import CommandRefused, LinkError, PortNotFound
+from .shared import SharedLink
 from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
 
 PACKAGE = "uavarm_ros"
@@ -179,86 +180,6 @@ def roll_pitch(x: float, y: float, z: float, w: float) -> tuple[float, float]:
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     return roll, pitch
-
-
-# ------------------------------------------------------------------ the shared link
-
-class SharedLink(ArmLink):
-    """ArmLink for several threads: only the loop reads the port (poll); command threads wait
-    for the heartbeats it delivers. One re-entrant lock covers every read and write."""
-
-    def __init__(self, port, baud: int = 115200, **kw):
-        super().__init__(port, baud, **kw)
-        self.cond = threading.Condition(threading.RLock())
-        self.count = 0            # heartbeats received so far
-        self.broken = None        # why the port failed, once it has
-        self.pending = None       # the set position of a set_position command in flight
-        self.last_sent = -math.inf
-
-    @property
-    def engaged(self) -> bool:
-        return bool(self.heartbeats) and bool(self.heartbeats[-1]["engaged"])
-
-    def send(self, name: str, **fields) -> None:
-        with self.cond:
-            if self.broken:
-                raise LinkError(f"serial link lost: {self.broken}")
-            if name == "set_position":
-                self.pending = (fields["x"], fields["y"], fields["z"])
-            super().send(name, **fields)
-            self.last_sent = time.monotonic()
-
-    def poll(self) -> list[dict]:
-        with self.cond:
-            new = super().poll()
-            if new:
-                self.count += len(new)
-                self.cond.notify_all()
-        return new
-
-    def next_heartbeat(self, timeout: float | None = None) -> dict:
-        timeout = self.silence if timeout is None else timeout
-        with self.cond:
-            start, start_bytes = self.count, self.bytes_received
-            arrived = self.cond.wait_for(lambda: self.count > start or self.broken, timeout)
-            if self.broken:
-                raise LinkError(f"serial link lost: {self.broken}")
-            if not arrived:
-                if self.bytes_received > start_bytes:
-                    raise LinkGarbled(f"{self.bytes_received - start_bytes} bytes in {timeout:.1f} s but no "
-                                      "valid heartbeat: wrong baud or device?")
-                raise LinkSilent(f"no heartbeat for {timeout:.1f} s: is the board powered and the port right?")
-            return self.heartbeats[-1]
-
-    def set_position(self, x: float, y: float, z: float) -> dict:
-        try:
-            return super().set_position(x, y, z)
-        finally:
-            with self.cond:
-                self.pending = None
-
-    def keep_alive(self) -> None:
-        """Repeat the set position: the one in flight if a set_position command waits for its
-        confirmation (so a keep-alive never undoes it), else the latest heartbeat's."""
-        with self.cond:
-            if self.pending is not None:
-                x, y, z = self.pending
-            elif self.heartbeats:
-                hb = self.heartbeats[-1]
-                x, y, z = hb["set_x"], hb["set_y"], hb["set_z"]
-            else:
-                return
-            ArmLink.send(self, "set_position", x=x, y=y, z=z)
-            self.last_sent = time.monotonic()
-
-    def fail(self, why: str) -> None:
-        with self.cond:
-            self.broken = why
-            self.cond.notify_all()
-            try:
-                self.close()
-            except Exception:
-                pass
 
 
 # ------------------------------------------------------------------ the node

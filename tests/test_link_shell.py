@@ -1,0 +1,113 @@
+"""`uavarm link PORT shell`: one connection for a whole session against the SITL: commands and
+targets from a script, standard input or a prompt, the arm kept engaged between them, and
+every bad line or lost port one `error:` line, never a traceback."""
+import re
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from uavarm.link.messages import fault_names, state_name
+from uavarm.link.shell import ShellError, parse, run_shell
+from uavarm.model import config
+from uavarm.sim.sitl import Sitl
+
+SPEED = 2.0          # simulated seconds per real second
+
+
+@pytest.fixture
+def sitl():
+    s = Sitl(speed=SPEED)
+    thread = threading.Thread(target=s.run, daemon=True)
+    thread.start()
+    yield s
+    s.stop()
+    thread.join(timeout=5)
+
+
+def shell(sitl, text, *args):
+    return subprocess.run([sys.executable, "-m", "uavarm.cli", "link", sitl.device, "shell", *args],
+                          input=text, capture_output=True, text=True, timeout=60)
+
+
+def test_lines_are_commands_or_targets():
+    assert parse("  # a comment") is None and parse("") is None
+    assert parse("enable") == ("enable", [])
+    assert parse("60,20,-120") == ("goto", [60.0, 20.0, -120.0])          # a CSV row
+    assert parse("60 20 -120 1.5") == ("goto", [60.0, 20.0, -120.0, 1.5])
+    assert parse("GOTO 1, 2, 3  # comment") == ("goto", [1.0, 2.0, 3.0])
+    assert parse("wait 2") == ("wait", [2.0])
+    for bad, why in (("fly", "unknown command"), ("goto 1 2", "takes 3-4 numbers"), ("wait", "takes 1"),
+                     ("goto nan 0 -100", "finite"), ("60,x,-120", "not a number"), ("wait -1", ">= 0"),
+                     ("jog 4 10", "joint must be 1, 2 or 3"), ("enable 1", "takes 0")):
+        with pytest.raises(ShellError, match=why):
+            parse(bad)
+
+
+def test_a_script_keeps_the_arm_engaged_between_its_commands(sitl):
+    """Engaged for three link silence timeouts with no command sent: the session's own
+    keep-alive holds it; the targets are taken; the end of input is said."""
+    m = config.load()
+    hold = 3 * m.link_silence_timeout / SPEED                 # real seconds
+    script = f"enable\nengage\n60,20,-120,{hold}\n40 0 -140\nstatus\n"
+    out = shell(sitl, script)
+    assert out.returncode == 0, out.stderr
+    assert "Traceback" not in out.stderr and out.stderr == ""
+    # the board's heartbeats up to the script's last command (the arm parks once it ends)
+    last = float(re.search(r"status: ok \[\s*([\d.]+) s\]", out.stdout).group(1))
+    hbs = [h for h in sitl.board.heartbeats if h["uptime_ms"] <= last * 1000 + 1]
+    first = next(i for i, h in enumerate(hbs) if h["engaged"])
+    assert all(h["engaged"] and "link_lost" not in fault_names(h["faults"]) for h in hbs[first:]), \
+        "the arm disengaged during the session"
+    assert (hbs[-1]["set_x"], hbs[-1]["set_y"], hbs[-1]["set_z"]) == (40.0, 0.0, -140.0)
+    assert state_name(hbs[-1]["state"]) in ("moving", "holding")
+    assert hbs[-1]["uptime_ms"] - hbs[first]["uptime_ms"] >= 3 * m.link_silence_timeout * 1000
+    assert "goto: ok" in out.stdout and "parks once the link has been silent" in out.stdout
+
+
+def test_a_csv_of_targets_from_a_file(sitl, tmp_path):
+    targets = tmp_path / "targets.csv"
+    targets.write_text("# x, y, z (mm), seconds\n60,20,-120,0.2\n40,0,-140,0.2\n")
+    out = shell(sitl, "", "--script", str(targets))
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.count("goto: ok") == 2
+    assert sitl.board.heartbeats[-1]["set_x"] == pytest.approx(40.0)
+
+
+def test_the_first_bad_line_of_a_script_stops_it_with_its_number(sitl):
+    out = shell(sitl, "enable\n\nfly away\nengage\n")
+    assert out.returncode == 1 and out.stderr.strip() == "error: line 3: unknown command 'fly' (help lists them)"
+    assert sitl.board.heartbeats[-1]["engaged"] == 0          # engage never sent
+    out = shell(sitl, "goto 500 0 0\n")
+    assert out.returncode == 1 and out.stderr.startswith("error: line 1: set_position (500.0, 0.0, 0.0) refused: "
+                                                         "unreachable")
+    out = shell(sitl, "", "--script", "/no/such/targets.csv")
+    assert out.returncode == 1 and out.stderr == "error: --script /no/such/targets.csv: No such file or directory\n"
+
+
+def test_at_a_prompt_a_refusal_is_told_and_the_session_goes_on(sitl, capsys):
+    lines = ["engage", "fly", "enable", "help", "status"]
+    assert run_shell(sitl.device, 115200, lines, interactive=True) == 0
+    out, err = capsys.readouterr()
+    assert "error: engage refused" in err and "error: unknown command 'fly'" in err
+    assert "enable: ok" in out and "wait S" in out and "status: ok" in out
+
+
+def test_a_port_that_vanishes_mid_session_ends_it_with_one_line(sitl):
+    proc = subprocess.Popen([sys.executable, "-m", "uavarm.cli", "link", sitl.device, "shell"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc.stdin.write("enable\nwait 30\nstatus\n")
+    proc.stdin.flush()
+    end = time.monotonic() + 20
+    while not sitl.board.heartbeats or not sitl.board.heartbeats[-1]["enabled"]:
+        assert time.monotonic() < end, "enable not taken"
+        time.sleep(0.05)
+    sitl.stop()
+    try:
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1
+    assert "Traceback" not in err and re.match(r"error: line [12]: serial link lost: the serial port failed", err) and err.count("\n") == 1
