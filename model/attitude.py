@@ -11,10 +11,10 @@ The IMU reads the specific force, which at rest is "up": u_B = R_WB^T (0, 0, 1) 
 
     roll = atan2(u_y, u_z),   pitch = atan2(-u_x, sqrt(u_y^2 + u_z^2))
 
-(SPEC erratum 2: the thesis's equation 3.1 is garbled). The IMU's own axes are rotated on
+(the thesis's equation 3.1 is garbled in print; this is the standard form). The IMU's own axes are rotated on
 the board: v_B = R_mount v_IMU, R_mount from the model file's mounting roll/pitch/yaw.
 
-The complementary filter (thesis eq. 3.3, SPEC erratum 1: the rate is integrated over the
+The complementary filter (thesis eq. 3.3, with the rate integrated over the
 sample period) blends the gyro-propagated angle with the accelerometer's:
 
     angle_k = w (angle_{k-1} + rate dt) + (1 - w) angle_acc

@@ -170,7 +170,7 @@ R2 = sp.Symbol("r2c", positive=True)   # squared shoulder distance the elbow is 
 
 @dataclass(frozen=True)
 class BranchIk:
-    """The IK on one branch, for a target that moves (model/motion keys; SPEC "Motion").
+    """The IK on one branch, for a target that moves (model/motion keys).
 
     In the plane of joint 1 at angle q1 a point sits at signed distance u from the base
     axis (u = +rho in the plane turned toward it, -rho in the plane turned away, anything

@@ -1,4 +1,4 @@
-"""Is every pose between two goals safe? The swept check (SPEC "Motion").
+"""Is every pose between two goals safe? The swept check.
 
 Between two consecutive goals each servo turns its joint from the old angle to the new one
 at its own speed, arriving at its own time. Whatever the timing, every pose on the way lies

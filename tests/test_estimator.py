@@ -309,7 +309,7 @@ def test_tracks_motion_with_the_predicted_lag(build, motion):
 
 
 def test_one_gyro_step_integrates_rate_times_dt(build):
-    """SPEC erratum 1: level and at rest with a gyro rate, one step moves the angle by
+    """The rate is integrated over the sample period: level and at rest with a gyro rate, one step moves the angle by
     w * rate * dt with dt = 1 / sample_rate of the model file (not w * rate)."""
     w, dt = build.m.complementary_gyro_weight, 1.0 / build.m.sample_rate
     up = f32(build.imu([0.0, 0.0, 1.0]))

@@ -1,5 +1,5 @@
-"""Fault injection through the simulated board (issue 7, item 2): each fault of the issue's
-list that test_app.py and test_servo_bus.py do not already cover, injected where the
+"""Fault injection through the simulated board: each fault of the fault table (docs/firmware.md)
+that test_app.py and test_servo_bus.py do not already cover, injected where the
 hardware would produce it (servo status bytes, the servo shafts, the MPU-6050's registers,
 the link's bytes, time), with tests/invariants.py's safety invariants checked after every
 step, the fault flagged in the heartbeat, and recovery once it clears.

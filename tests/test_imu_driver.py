@@ -33,7 +33,7 @@ FS_SEL = {250: 0, 500: 1, 1000: 2, 2000: 3}                # GYRO_CONFIG bits 4:
 AFS_SEL = {2: 0, 4: 1, 8: 2, 16: 3}                        # ACCEL_CONFIG bits 4:3
 ACCEL_LSB_PER_G = {2: 16384, 4: 8192, 8: 4096, 16: 2048}   # PS-MPU-6000A table 6.2
 GYRO_LSB_PER_DPS = {250: 131.0, 500: 65.5, 1000: 32.8, 2000: 16.4}   # PS-MPU-6000A table 6.1
-PROPELLER_BAND_HZ = (57.0, 97.0)                           # SPEC/issue: propeller vibration
+PROPELLER_BAND_HZ = (57.0, 97.0)                           # propeller vibration
 
 MODEL = config.load()
 
