@@ -61,6 +61,13 @@ TARGETS = (
     Target("dxl_protocol.c: status parser", "firmware_stm32/App/Src/dxl_protocol.c",
            (("c", "dxl_checksum"), ("c", "candidate"), ("c", "drop_front"), ("c", "dxl_parse_byte")),
            ("tests/test_dxl_protocol.py", "tests/test_servo_bus.py")),
+    Target("motion.c: swept motion", "firmware_stm32/App/Src/motion.c",
+           (("c", "largest_change"), ("c", "path_clear"), ("c", "aim_clear"), ("c", "motion_start"),
+            ("c", "goal_from"), ("c", "motion_goal_for"), ("c", "tuck_route"), ("c", "motion_go"),
+            ("c", "motion_on_axis"), ("c", "motion_head_for"), ("c", "follow"), ("c", "motion_tick"),
+            ("c", "motion_smaller")),
+           ("tests/test_motion_planner.py", "tests/test_motion.py", "tests/test_service.py", "tests/test_command_guards.py",
+            "tests/test_bad_ik.py", "tests/test_app.py", "tests/test_safety_grid.py")),
 )
 
 # Never run against a mutant: they compare generated/ with the generator's output, which

@@ -52,8 +52,6 @@ typedef struct {
     float share;                   /* the latest step's share of the way to its destination */
     uint8_t tries;                 /* smaller steps offered since (motion_smaller) */
     bool blocked;                  /* the latest goal did not move, short of the destination */
-    uint32_t blocked_steps;        /* counters */
-    uint32_t routes_refused;
     uint32_t tucks;                /* routes that went by the tuck */
 } motion_t;
 
@@ -106,7 +104,6 @@ static inline void motion_done(motion_t *m, const float q[3])
     const float *dest = motion_destination(m);
     const bool there = q[0] == dest[0] && q[1] == dest[1] && q[2] == dest[2];
     m->blocked = !there && q[0] == m->q[0] && q[1] == m->q[1] && q[2] == m->q[2];
-    if (m->blocked) m->blocked_steps++;
     if (there) {
         if (m->next_via < m->vias) m->next_via++;
         else m->arrived = true;

@@ -108,10 +108,7 @@ bool motion_go(motion_t *m, const float goal[3])
     uint8_t vias = 0;
     if (!m->started) return false;
     if (!path_clear(m->q, goal, &budget)) {
-        if (!tuck_route(m->q, goal, via, &budget)) {
-            m->routes_refused++;
-            return false;
-        }
+        if (!tuck_route(m->q, goal, via, &budget)) return false;
         vias = 2;
         m->tucks++;
     }

@@ -1,0 +1,273 @@
+"""motion.c on its own, through the host build: each function's contract in motion.h, checked
+pose by pose where the closed-loop tests only see the arm end up right (the final check in
+app.c and the following that runs after hide a planner that aims wrong for a tick or takes a
+needless detour).
+
+Oracles: plain geometry (tests/oracles.py: the arm's points, the pose check, the followed
+branch's IK by the law of cosines), the AX-12A's speed unit (e-manual), and the order of
+the smaller steps written in motion.h.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from oracles import arm_points, branch_ik, check_pose, clear_by, textbook_ik
+from simboard_tools import MODEL, RPM_PER_SPEED_UNIT, speed_register
+from uavarm.build import firmware
+
+FFI, LIB = firmware.default()
+PARK = np.radians(MODEL.park_deg)
+MARGIN = 0.0035            # rad: motion.h's MOTION_GOAL_MARGIN, which every goal keeps
+TOL_RAD = 2e-4             # float32 IK against float64 geometry
+TOL_MM = 0.05
+
+
+def ee(q):
+    return arm_points(MODEL, np.asarray(q, dtype=float))[2]
+
+
+def started(q):
+    m = FFI.new("motion_t *")
+    assert LIB.motion_start(m, list(map(float, q)))
+    return m
+
+
+def tick(m, target=None, pinned=False):
+    q_next = FFI.new("float[3]")
+    speed = LIB.motion_tick(m, FFI.NULL if target is None else list(map(float, target)), pinned, q_next)
+    return speed, np.array(list(q_next))
+
+
+def goal_for(m, p):
+    goal = FFI.new("float[3]")
+    ok = LIB.motion_goal_for(m, list(map(float, p)), goal)
+    return ok, np.array(list(goal))
+
+
+def safe(q, margin=0.0):
+    status, clear = check_pose(MODEL, q, margin)
+    return status[0] == 0 and clear[0]
+
+
+def elbow_sign(q):
+    return 1.0 if q[2] > 0 else -1.0
+
+
+def sampled_poses(seed, n, mm=2.0, rad=0.02):
+    """Random poses `rad` inside the limits and `mm` clear of body and legs."""
+    rng = np.random.default_rng(seed)
+    lo = np.radians([l.min_deg for l in MODEL.limits])
+    hi = np.radians([l.max_deg for l in MODEL.limits])
+    q = rng.uniform(lo, hi, size=(20 * n, 3))
+    keep = q[clear_by(MODEL, q, mm, rad)]
+    assert len(keep) >= n
+    return keep[:n]
+
+
+STARTS = [PARK, np.radians([100.0, 50.0, 40.0]), np.radians([-120.0, -40.0, -70.0]),
+          np.radians([0.0, 30.0, 60.0])]
+
+
+@pytest.mark.parametrize("q", STARTS, ids=lambda q: "start " + ",".join(f"{d:.0f}" for d in np.degrees(q)))
+def test_started_arm_holds_its_pose_and_follows_it_at_working_speed(q):
+    """Started at a pose, the arm is at its aim: following the target that pose reaches
+    proposes that very pose (no drift, however far round joint 1 is), at the working speed."""
+    m = started(q)
+    speed, q_next = tick(m, ee(q))
+    assert speed == LIB.MOTION_WORKING_SPEED
+    np.testing.assert_allclose(q_next, q, atol=TOL_RAD)
+    np.testing.assert_allclose(list(m.aim), q, atol=TOL_RAD)
+
+
+def test_started_arm_follows_a_target_just_outside_the_hold_radius():
+    """Beyond axis_hold_radius the target's direction is followed from the start: joint 1
+    turns with a target 12 mm off the axis that moves round it (the hold begins only once
+    the target comes within the hold radius)."""
+    r = 0.5 * (MODEL.motion.axis_hold_radius + MODEL.motion.axis_release_radius)
+    target = np.array([r, 0.0, -150.0])
+    q, *_ = branch_ik(MODEL, target, [0.0, 0.0, 0.5], 1.0, hold=False)
+    assert safe(q, MARGIN)
+    m = started(q)
+    turned = np.array([r * math.cos(0.2), -r * math.sin(0.2), -150.0])   # joint 1 at +0.2 rad
+    _, q_next = tick(m, turned)
+    expect, *_ = branch_ik(MODEL, turned, q, 1.0, hold=False)
+    assert expect[0] == pytest.approx(0.2, abs=1e-9)
+    np.testing.assert_allclose(list(m.aim), expect, atol=TOL_RAD)
+
+
+def test_start_refuses_an_unsafe_pose():
+    for q in ([0.0, 0.0, math.radians(120.0)], [0.0, math.radians(100.0), math.radians(100.0)], [math.nan, 0.0, 0.0]):
+        m = FFI.new("motion_t *")
+        assert not LIB.motion_start(m, q)
+        assert not m.started
+
+
+def test_goal_for_reaches_the_target_on_the_arms_branch():
+    """A target the arm's own branch reaches, nothing clamped, with room to spare: the goal
+    is that branch's pose, and it puts the end effector on the target."""
+    found = 0
+    for start in STARTS:
+        m = started(start)
+        for q in sampled_poses(1, 200):
+            p = ee(q)
+            own, *clamped = branch_ik(MODEL, p, start, elbow_sign(start), hold=False)
+            if any(clamped) or not clear_by(MODEL, own, 2.0, 0.02)[0]:
+                continue
+            found += 1
+            ok, goal = goal_for(m, p)
+            assert ok, np.degrees(q)
+            np.testing.assert_allclose(goal, own, atol=TOL_RAD)
+            np.testing.assert_allclose(ee(goal), p, atol=TOL_MM)
+    assert found >= 200
+
+
+def test_goal_for_takes_the_other_branch_where_the_arms_own_cannot_reach():
+    """A target whose every pose on the arm's elbow is refused (limit, body, leg) is reached
+    on the other elbow: a valid goal, not a refusal."""
+    m = started(PARK)
+    found = 0
+    for q in sampled_poses(2, 3000):
+        if elbow_sign(q) == elbow_sign(PARK):
+            continue
+        p = ee(q)
+        own_elbow = [c for c in _textbook_candidates(p) if elbow_sign(c) == elbow_sign(PARK)]
+        if any(safe(c, 0.01) or not check_pose(MODEL, c, 0.01)[1][0] for c in own_elbow):
+            continue                    # the arm's own elbow has a pose (or one too close to call)
+        found += 1
+        ok, goal = goal_for(m, p)
+        assert ok, np.degrees(q)
+        np.testing.assert_allclose(ee(goal), p, atol=TOL_MM)
+        assert safe(goal, MARGIN - 1e-4)
+    assert found >= 20
+
+
+def _textbook_candidates(p):
+    q, exists = textbook_ik(MODEL, p)
+    return [c for c, e in zip(q[0], exists[0]) if e]
+
+
+def test_goal_for_a_target_out_of_reach_is_refused():
+    m = started(PARK)
+    for p in ([400.0, 0.0, -100.0], [0.0, 0.0, 50.0], [math.nan, 0.0, -100.0]):
+        ok, _ = goal_for(m, p)
+        assert not ok, p
+
+
+def _state(m):
+    return bytes(FFI.buffer(m))
+
+
+def test_head_for_out_of_reach_everywhere_changes_nothing():
+    m = started(PARK)
+    before = _state(m)
+    assert not LIB.motion_head_for(m, [400.0, 0.0, -100.0], [380.0, 0.0, -100.0])
+    assert _state(m) == before
+
+
+def test_head_for_out_of_reach_at_the_tilt_heads_for_the_level_pose():
+    """The set position reachable from a level base but not at the tilt: the arm heads for
+    its level pose (and follows from there), instead of refusing it."""
+    m = started(PARK)
+    p_level = ee(np.radians([30.0, 40.0, -60.0]))
+    assert LIB.motion_head_for(m, [400.0, 0.0, -100.0], list(map(float, p_level)))
+    np.testing.assert_allclose(ee(list(m.aim)), p_level, atol=TOL_MM)
+    assert safe(list(m.aim), MARGIN - 1e-4)
+
+
+def _route(m, start):
+    return [np.asarray(start)] + [np.array(list(m.via[k])) for k in range(m.vias)] + [np.array(list(m.aim))]
+
+
+def _straight_clear(a, b, samples=400):
+    """The joint-space line a -> b, densely sampled, clear by plain geometry."""
+    s = np.linspace(0.0, 1.0, samples)[:, None]
+    status, _ = check_pose(MODEL, a + s * (b - a))
+    return bool(np.all(status == 0))
+
+
+def test_routes_are_clear_and_straight_where_the_straight_move_is():
+    """motion_go: a goal the straight joint-space move reaches clear of everything (with room
+    to spare) is headed for directly, no corners; any route it plans is clear end to end;
+    a goal it refuses leaves the arm as it was."""
+    goals = sampled_poses(3, 40, mm=5.0, rad=0.05)
+    straight = tucked = refused = 0
+    for start in STARTS:
+        for goal in goals:
+            m = started(start)
+            before = _state(m)
+            if not LIB.motion_go(m, list(map(float, goal))):
+                refused += 1
+                assert _state(m) == before
+                continue
+            route = _route(m, start)
+            np.testing.assert_array_equal(route[-1], goal.astype(np.float32))
+            for a, b in zip(route, route[1:]):
+                assert _straight_clear(a, b), (np.degrees(a), np.degrees(b))
+            roomy = all(safe(start + s * (goal - start), 0.03) for s in np.linspace(0, 1, 200))
+            if roomy:
+                assert m.vias == 0, "a clear straight move taken by a detour"
+                straight += 1
+            tucked += m.vias > 0
+    assert straight >= 20 and tucked >= 5, (straight, tucked, refused)
+
+
+def test_a_new_goal_sets_the_branch_that_following_keeps():
+    """After motion_go to a pose on the other elbow, following its target stays there."""
+    m = started(PARK)
+    goal = np.radians([20.0, -30.0, 70.0])
+    assert safe(goal, 0.05) and elbow_sign(goal) != elbow_sign(PARK)
+    assert LIB.motion_go(m, list(map(float, goal)))
+    speed, _ = tick(m, ee(goal))
+    assert speed == LIB.MOTION_TRANSIT_SPEED            # not yet at its aim
+    np.testing.assert_allclose(list(m.aim), goal, atol=TOL_RAD)
+
+
+def test_pinned_and_held_targets_keep_joint_1():
+    """Pinned (a set position on the axis), joint 1 holds wherever the target goes; unpinned,
+    it holds only while the target is within axis_hold_radius of the axis."""
+    q = np.radians([10.0, 40.0, -60.0])
+    m = started(q)
+    away = np.array([60.0, -60.0, -120.0])              # 45 deg round from joint 1
+    tick(m, away, pinned=True)
+    assert m.aim[0] == pytest.approx(q[0], abs=1e-6)
+    expect, *_ = branch_ik(MODEL, away, q, -1.0, hold=True)
+    np.testing.assert_allclose(list(m.aim), expect, atol=TOL_RAD)
+
+    m = started(q)
+    near = np.array([0.0, 0.5 * MODEL.motion.axis_hold_radius, -150.0])   # 90 deg round, near the axis
+    tick(m, near)
+    assert m.aim[0] == pytest.approx(q[0], abs=1e-6)
+    tick(m, away)
+    expect, *_ = branch_ik(MODEL, away, q, -1.0, hold=False)
+    assert m.aim[0] == pytest.approx(expect[0], abs=TOL_RAD)
+
+
+def _step_rad(rpm):
+    """One tick's step (rad) at a speed, as the servo's Moving Speed register can express it."""
+    return speed_register(rpm) * RPM_PER_SPEED_UNIT * 2 * math.pi / 60 / MODEL.sample_rate
+
+
+@pytest.mark.parametrize("far", [True, False], ids=["step short of the goal", "goal within a step"])
+def test_a_refused_step_is_offered_smaller_in_the_written_order(far):
+    """motion_tick proposes one step at the park speed, all joints in proportion (or the goal
+    itself when within a step); refused, motion_smaller offers half of it, a quarter, joint 1
+    alone and joints 2-3 alone (each the whole step's share), then nothing."""
+    start = np.radians([0.0, 60.0, -100.0])
+    goal = start + (np.radians([20.0, -15.0, 10.0]) if far else np.array([0.004, -0.003, 0.002]))
+    m = started(start)
+    assert LIB.motion_go(m, list(map(float, goal)))
+    speed, q_next = tick(m)
+    assert speed == LIB.MOTION_PARK_SPEED
+    d = goal - start
+    share = min(1.0, _step_rad(MODEL.park_speed_rpm) / np.abs(d).max())
+    np.testing.assert_allclose(q_next, start + share * d, atol=2e-6)
+    expected = [start + 0.5 * share * d, start + 0.25 * share * d,
+                start + share * d * [1, 0, 0], start + share * d * [0, 1, 1]]
+    for k, want in enumerate(expected):
+        smaller = FFI.new("float[3]")
+        assert LIB.motion_smaller(m, smaller), k
+        np.testing.assert_allclose(list(smaller), want, atol=2e-6, err_msg=f"try {k}")
+    assert not LIB.motion_smaller(m, FFI.new("float[3]"))
