@@ -46,15 +46,15 @@ AX12_BAUD_CLOCK = 2_000_000
 AX12_BAUD_REGISTER_MAX = 254
 BAUD_TOLERANCE = 0.03
 
-# Every key of the model file, by table; the imu.accel_bias, imu.accel_scale and
-# imu.gyro_bias_dps calibration may be absent. Any other key is refused (a typo would
+# Every key of the model file, by table; the imu.accel_bias, imu.accel_scale,
+# imu.gyro_bias_dps and servo.response_lag calibration may be absent. Any other key is refused (a typo would
 # otherwise be ignored, or reported as the key it was meant to be missing).
 _KEYS_BY_TABLE = {
     "geometry": "L1 L2 L3",
     "joints.theta1": "min max", "joints.theta2": "min max", "joints.theta3": "min max",
     "collision": "body_z leg_angles leg_half_width leg_distance",
     "servo": "baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
-             "working_speed_rpm boot_time",
+             "working_speed_rpm boot_time response_lag",
     "servo.theta1": "id zero direction", "servo.theta2": "id zero direction",
     "servo.theta3": "id zero direction",
     "park": "q",
@@ -124,6 +124,7 @@ class Model:
     transit_speed_rpm: float
     working_speed_rpm: float
     servo_boot_time: float
+    servo_response_lag: float      # s: how far the shaft lags its goal (the lead time covers it)
     park_deg: tuple[float, float, float]
     link_silence_timeout: float
     heartbeat_period: float
@@ -147,6 +148,12 @@ class Model:
 # +-150 mg on Z; sensitivity within 3 %): beyond these the chip or the procedure is broken.
 ACCEL_BIAS_MAX_G = 0.25
 ACCEL_SCALE_RANGE = (0.9, 1.1)
+# An AX-12A's lag behind its goal until measured: inside the factory compliance slope (32
+# units) its duty, and at no load its speed, is proportional to the error, so the error
+# decays with 32 units / (59 rpm = 1207 units/s) = 26.5 ms. A servo lagging more than
+# SERVO_LAG_MAX_S is too slow to stabilise anything (or is not following at all).
+SERVO_LAG_ASSUMED_S = 0.0265
+SERVO_LAG_MAX_S = 0.15
 
 
 @dataclass(frozen=True)
@@ -353,6 +360,8 @@ def parse(raw: bytes, path: Path) -> Model:
         transit_speed_rpm=r.number("servo.transit_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         working_speed_rpm=r.number("servo.working_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
+        servo_response_lag=(r.number("servo.response_lag", nonnegative=True, hi=SERVO_LAG_MAX_S)
+                            if r.has("servo.response_lag") else SERVO_LAG_ASSUMED_S),
         park_deg=park,
         link_silence_timeout=r.number("link.silence_timeout", lo=2 / sample_rate, hi=3600.0),
         heartbeat_period=heartbeat,

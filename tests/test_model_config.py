@@ -117,12 +117,16 @@ def test_calibration_keys_may_be_absent(tmp_path):
                  "gyro_bias_dps = [0.0, 0.0, 0.0]\n"):
         assert line in text
         text = text.replace(line, "", 1)
+    line = "response_lag = 0.0265\n"
+    assert line in text
+    text = text.replace(line, "", 1)
     model, _ = load_text(tmp_path, text)
     assert model.imu_calibration == config.ImuCalibration()
+    assert model.servo_response_lag == 0.0265          # the AX-12A's no-load control law: 32 units / 1207 units/s
 
 
 def test_every_other_key_is_required(tmp_path):
-    """The known keys are the committed model's keys; each one but the IMU calibration is
+    """The known keys are the committed model's keys; each one but the calibration is
     reported missing when it is deleted, so none is known without being read."""
     import tomlkit
     leaves = []
@@ -133,7 +137,7 @@ def test_every_other_key_is_required(tmp_path):
         for k, v in node.items():
             (stack.append((f"{prefix}{k}.", v)) if isinstance(v, dict) else leaves.append(f"{prefix}{k}"))
     assert sorted(leaves) == sorted(config.KNOWN_KEYS)
-    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps"}
+    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps", "servo.response_lag"}
     for key in leaves:
         doc = tomlkit.parse(BASE)
         *tables, name = key.split(".")
@@ -194,6 +198,8 @@ def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
     ("working_speed_rpm = 59.0", "working_speed_rpm = -5.0", "servo.working_speed_rpm", ">= 0.111"),
     ("boot_time = 0.1", "boot_time = -0.1", "servo.boot_time", "negative"),
     ("boot_time = 0.1", "", "servo.boot_time", "missing"),
+    ("response_lag = 0.0265", "response_lag = -0.01", "servo.response_lag", "negative"),
+    ("response_lag = 0.0265", "response_lag = 0.3", "servo.response_lag", "<= 0.15"),
     ("q = [0.0, 60.0, -110.0]", "q = [0.0, 60.0]", "park.q", "expected 3 angles"),
     ("q = [0.0, 60.0, -110.0]", "q = [0.0, 60.0, -110.0, 0.0]", "park.q", "expected 3 angles"),
     ("q = [0.0, 60.0, -110.0]", 'q = [0.0, "60", -110.0]', "park.q[1]", "finite number"),

@@ -195,14 +195,16 @@ def parser() -> argparse.ArgumentParser:
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
     cal = sub.add_parser("calibrate", help="guided calibration over the link, written into the model file")
-    cal.add_argument("what", choices=["imu", "mounting", "servos"],
+    cal.add_argument("what", choices=["imu", "mounting", "servos", "lag"],
                      help="imu: accelerometer bias and scale (six still positions) and the gyro's offset; "
                           "mounting: the IMU's roll and pitch on the base (drone standing level); servos: "
-                          "each servo's zero and direction (the arm held at its zero pose, then small jogs)")
+                          "each servo's zero and direction (the arm held at its zero pose, then small jogs); "
+                          "lag: how far the servos lag their goal (a jog of each joint), and the lead time")
     cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")
     cal.add_argument("--model", default=None, help="model file to update (default: model/manipulator.toml)")
-    cal.add_argument("--seconds", type=POSITIVE, default=2.0,
-                     help="seconds of samples per position (default: %(default)s)")
+    cal.add_argument("--seconds", type=POSITIVE, default=None,
+                     help="seconds of samples per position, or after each jog for lag (default: imu 2, "
+                          "mounting 3, servos 1, lag 0.4)")
     cal.add_argument("--yes", action="store_true", help="write the result without asking")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
     st.add_argument("scenario", nargs="?", default="level",
@@ -216,6 +218,9 @@ def parser() -> argparse.ArgumentParser:
     st.add_argument("--imu-mounting", default=None, metavar="ROLL,PITCH,YAW",
                     help="how the simulated IMU really sits on the base (deg), whatever the model file says "
                          "(default: as the model file says)")
+    st.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=0.0, metavar="MS",
+                    help="how far the simulated servos' shafts lag their speed-limited motion (first order; "
+                         "default: %(default)s)")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
     sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/sim/scenarios.py)")
     sm.add_argument("--show", action="store_true",
@@ -231,6 +236,9 @@ def parser() -> argparse.ArgumentParser:
     sm.add_argument("--preflight", type=NOT_NEGATIVE, default=10.0,
                     help="seconds on the ground (still, level, motors off) between power-up and the flight "
                          "(default: %(default)s)")
+    sm.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=None, metavar="MS",
+                    help="how far the simulated servos' shafts lag their speed-limited motion, whatever the model "
+                         "file says (first order; default: the no-load AX-12A's 26.5)")
     sm.add_argument("--seeds", type=_integer(1), default=1, help="seeds to run (default: %(default)s)")
     sm.add_argument("--seed", type=_integer(0), default=0, help="first seed (default: %(default)s)")
     sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,
@@ -310,7 +318,8 @@ def run(args) -> int:
     if args.command == "sitl":
         from .sim import sitl
         _require_current_code()
-        return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting)
+        return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting,
+                         servo_lag=args.servo_lag_ms / 1000)
     return demo(args)
 
 

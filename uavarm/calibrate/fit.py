@@ -1,4 +1,4 @@
-"""The arithmetic of the IMU calibrations, apart from how the samples are taken.
+"""The arithmetic of the calibrations, apart from how the samples are taken.
 
 Accelerometer (six or more still positions, as PX4 and ArduPilot do it): each axis reads
 scale x (true) + bias, and at rest the true specific force is 1 g in some direction, so the
@@ -9,6 +9,12 @@ per-axis mid-points); the positions need not be exactly aligned with the axes.
 Mounting: with the drone standing level the IMU's corrected reading is the base frame's up
 in IMU axes; for v_base = Rz(yaw) Ry(pitch) Rx(roll) v_imu that is (-sin p, sin r cos p,
 cos r cos p), which gives roll and pitch (yaw is not seen by gravity).
+
+Servo lag: the shaft as a first-order lag with dead time behind its goal, x' = (g(t - dead)
+- x) / tau, fitted to the present positions streamed while the firmware ramps the goal (a
+jog); the goal between readings taken as linear (the firmware moves it a step per tick).
+Following a ramp the shaft lags by dead + tau, which the lead time must cover (how that
+splits into the two, only the ramp's end shows, and with readings 30 ms apart poorly).
 """
 from __future__ import annotations
 
@@ -106,3 +112,80 @@ def mounting_from_gravity(up_imu: np.ndarray) -> tuple[float, float]:
     base level (the base's up in IMU axes)."""
     ax, ay, az = (float(v) for v in up_imu)
     return math.degrees(math.atan2(ay, az)), math.degrees(math.atan2(-ax, math.hypot(ay, az)))
+
+
+# Servo lag fit: the grid of dead times and time constants searched (s), and what a usable
+# record must show.
+LAG_GRID_S = np.arange(0.0, 0.1205, 0.0005)
+LAG_FIT_RMS_MAX_UNITS = 1.5        # a following shaft reads within about a unit of the model
+LAG_FOLLOWED_SHARE = 0.7           # of the goal's travel the shaft must have followed
+LAG_TAIL_S = 0.15                  # readings used after the goal stops
+
+
+@dataclass(frozen=True)
+class ServoLag:
+    dead: float                    # s
+    tau: float                     # s
+    rms_units: float               # of the fit
+
+    @property
+    def lag(self) -> float:
+        """s: how far the shaft lags a ramp of its goal."""
+        return self.dead + self.tau
+
+
+def _first_order(goal: np.ndarray, x0: float, dt: float, taus: np.ndarray) -> np.ndarray:
+    """Responses (len(taus), len(goal)) of x' = (goal - x) / tau on a grid of step dt, from
+    x0; tau 0 follows the goal."""
+    keep = np.exp(-dt / np.maximum(taus, 1e-12)) * (taus > 0)
+    x = np.empty((len(taus), len(goal)))
+    x[:, 0] = x0
+    for k in range(1, len(goal)):
+        x[:, k] = keep * x[:, k - 1] + (1.0 - keep) * goal[k]
+    return x
+
+
+def _moving_part(t, goal, pos, joint: int):
+    """The readings from the last one at rest before the goal moved to LAG_TAIL_S after it
+    stopped (at rest the shaft may stand anywhere within the compliance margin: no lag to see)."""
+    if len(t) < 6:
+        raise CalibrationError(f"only {len(t)} readings of joint {joint}'s servo during a jog: is it "
+                               "connected (heartbeat servo_timeout)?")
+    changes = np.flatnonzero(np.diff(goal)) + 1          # readings with a new goal
+    if len(changes) == 0:
+        raise CalibrationError(f"joint {joint}'s goal did not move during the record (jog refused?)")
+    end = np.searchsorted(t, t[changes[-1]] + LAG_TAIL_S, side="right")
+    part = slice(changes[0] - 1, end)
+    return t[part], goal[part], pos[part]
+
+
+def fit_servo_lag(records: list[tuple[np.ndarray, np.ndarray, np.ndarray]], joint: int) -> ServoLag:
+    """Dead time and time constant of one servo from records of (time s, goal, position)
+    (units), each a jog from rest with readings from before it; CalibrationError if the
+    shaft did not follow or the fit is poor."""
+    dt = 0.0005
+    sse = np.zeros((len(LAG_GRID_S), len(LAG_GRID_S)))     # [dead, tau]
+    count = 0
+    for record in records:
+        t, goal, pos = _moving_part(*record, joint)
+        travel, followed = np.ptp(goal), np.ptp(pos)
+        if travel < 10 or followed < LAG_FOLLOWED_SHARE * travel:
+            raise CalibrationError(f"joint {joint}'s servo moved {followed:.0f} of the {travel:.0f} units its goal "
+                                   "did: is it blocked, limp or unpowered?")
+        grid = np.arange(t[0] - LAG_GRID_S[-1], t[-1] + dt, dt)
+        g = np.interp(grid, t, goal)             # held at the first goal before the record
+        x = _first_order(g, pos[0], dt, LAG_GRID_S)
+        for i, dead in enumerate(LAG_GRID_S):
+            at = np.clip(np.round((t[1:] - dead - grid[0]) / dt).astype(int), 0, len(grid) - 1)
+            sse[i] += ((x[:, at] - pos[1:]) ** 2).sum(axis=1)
+        count += len(t) - 1
+    i, j = np.unravel_index(np.argmin(sse), sse.shape)
+    rms = float(np.sqrt(sse[i, j] / count))
+    fit = ServoLag(float(LAG_GRID_S[i]), float(LAG_GRID_S[j]), rms)
+    if rms > LAG_FIT_RMS_MAX_UNITS:
+        raise CalibrationError(f"joint {joint}'s servo does not follow its goal like a lag (fit rms {rms:.1f} units, "
+                               f"at most {LAG_FIT_RMS_MAX_UNITS}): was the arm touched or loaded during the jogs?")
+    if LAG_GRID_S[-1] in (fit.dead, fit.tau):
+        raise CalibrationError(f"joint {joint}'s servo lags more than {LAG_GRID_S[-1] * 1000:.0f} ms: too slow to "
+                               "stabilise anything (supply voltage? compliance settings?)")
+    return fit

@@ -1,7 +1,7 @@
-"""`uavarm calibrate imu|mounting|servos PORT`: guided calibrations over the link, written
-into the model file. Each step says what to do, waits for Enter, takes the streamed raw IMU samples,
-checks they are still, and says what it measured; a result that is implausible or noisy is
-refused with the reason and the model file is left as it was.
+"""`uavarm calibrate imu|mounting|servos|lag PORT`: guided calibrations over the link, written
+into the model file. Each step says what to do, waits for Enter, takes the streamed samples
+(raw IMU, or servo positions), checks them, and says what it measured; a result that is
+implausible or noisy is refused with the reason and the model file is left as it was.
 
 The procedures take `ask(text)` (wait for the user; the terminal's Enter) and
 `confirm(question)` (yes or no), so the tests drive them through a simulated board exactly
@@ -154,6 +154,60 @@ def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0) -> bool:
     return model_edit.write(model_path, values, confirm)
 
 
+# Servo lag: each joint jogged this far toward the middle of its travel and back, at the park
+# speed; the readings taken for this long after each jog's command.
+LAG_JOG_RAD = 0.25                 # 14 deg: about 50 units, a ramp of a quarter second
+LAG_SETTLE_S = 0.4
+
+
+def _jog_record(arm, joint: int, angle: float, seconds: float):
+    """(time s, goal, position) of joint's servo from a jog to `angle` until `seconds` after."""
+    arm.collect("servo_status", 0.1)                  # a few readings at rest first
+    arm.jog(joint, angle=angle)
+    frames = arm.collect("servo_status", seconds, keep=True)
+    mine = [f for f in frames if f["servo"] == joint - 1]
+    stamps = np.array([f["stamp_us"] for f in mine], dtype=np.int64)
+    t = np.concatenate([[0.0], np.cumsum(np.diff(stamps) % 2**32) * 1e-6]) if len(mine) else np.zeros(0)
+    return t, np.array([f["goal"] for f in mine], float), np.array([f["position"] for f in mine], float)
+
+
+def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S) -> bool:
+    """How far each servo's shaft lags its goal: a jog of each joint and back, fitted as a
+    first-order lag with dead time; servo.response_lag set to the joints' mean, and the lead
+    time moved by the same difference (it also covers the loop's own delay)."""
+    model = config.load(model_path)
+    hb = arm.next_heartbeat()
+    if not hb["enabled"] or hb["engaged"]:
+        raise CalibrationError("the arm must be enabled and not engaged: `uavarm link PORT enable` first")
+    ask(f"Each joint will turn {np.degrees(LAG_JOG_RAD):.0f} deg and back at the park speed, one at a time, "
+        "with nothing touching the arm. Keep clear and press Enter.")
+    q = [hb["q1"], hb["q2"], hb["q3"]]
+    arm.stream(servos=True)
+    fits = []
+    try:
+        for j, limit in enumerate(model.limits, 1):
+            middle = np.radians((limit.min_deg + limit.max_deg) / 2)
+            out = q[j - 1] + (LAG_JOG_RAD if middle >= q[j - 1] else -LAG_JOG_RAD)
+            records = [_jog_record(arm, j, out, seconds), _jog_record(arm, j, q[j - 1], seconds)]
+            f = fit.fit_servo_lag(records, j)
+            print(f"joint {j}: {f.lag * 1000:.1f} ms behind the jog's goal (fit rms {f.rms_units:.2f} units over "
+                  f"{sum(len(r[0]) for r in records)} readings)")
+            fits.append(f)
+    finally:
+        arm.stream(servos=False)
+    # At the jog's speed the servo's speed limit equals the goal's ramp, so its profile reaches
+    # each tick's goal only as the next is sent: one tick of the lag is the jog's, not the
+    # servo's (following the tilt, at the working speed, it catches up within the tick).
+    tick = 1.0 / model.sample_rate
+    measured = float(np.mean([f.lag for f in fits])) - tick
+    lead = max(0.0, model.estimator.lead_time + measured - model.servo_response_lag)
+    print(f"servo lag {measured * 1000:.1f} ms (the joints' mean less the {tick * 1000:.0f} ms tick the jog adds; "
+          f"was {model.servo_response_lag * 1000:.1f}): lead time "
+          f"{lead * 1000:.1f} ms (was {model.estimator.lead_time * 1000:.1f})")
+    return model_edit.write(model_path, {"servo.response_lag": round(measured, 4),
+                                         "estimator.lead_time": round(lead, 4)}, confirm)
+
+
 def terminal_ask(text: str) -> None:
     input(text + " ")
 
@@ -171,8 +225,8 @@ def command(args) -> int:
         config.load(path)
         with ArmLink(args.port) as arm:
             arm.next_heartbeat()
-            run = {"imu": imu, "mounting": mounting, "servos": servos}[args.what]
-            run(arm, path, terminal_ask, confirm, seconds=args.seconds)
+            run = {"imu": imu, "mounting": mounting, "servos": servos, "lag": lag}[args.what]
+            run(arm, path, terminal_ask, confirm, **({} if args.seconds is None else {"seconds": args.seconds}))
     except (LinkError, CalibrationError, config.ModelError, OSError) as exc:   # OSError: the port failed
         print(f"error: {exc}", file=sys.stderr)
         print(f"{path}: left as it was", file=sys.stderr)

@@ -291,10 +291,12 @@ class ArmLink:
         mode, value = (0, float(angle)) if angle is not None else (1, float(units))
         return self._service("jog", joint=int(joint), mode=mode, value=value)
 
-    def collect(self, name: str, seconds: float) -> list[dict]:
-        """The streamed frames of `name` that arrive during the next `seconds`."""
+    def collect(self, name: str, seconds: float, keep: bool = False) -> list[dict]:
+        """The streamed frames of `name` that arrive during the next `seconds` (keep: and
+        those that came since the last collect)."""
         self.poll()
-        self.streamed[name].clear()
+        if not keep:
+            self.streamed[name].clear()
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.poll()

@@ -104,7 +104,9 @@ class SimBoard:
     per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
     and still), Rocking, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
-    the last heartbeats (long runs such as the SITL); sensor: the MPU-6050's sensor model
+    the last heartbeats (long runs such as the SITL); servo_lag: the default servos' shaft
+    lag behind their speed-limited profile (s, first order, stopping within the compliance
+    margin; 0: none); sensor: the MPU-6050's sensor model
     (uavarm.sim.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
     gives the base frame's attitude(t) and imu(t) in base axes; the board turns the latter
     into the IMU's axes with the model's mounting rotation (or imu_mounting_rpy_deg, the
@@ -120,7 +122,7 @@ class SimBoard:
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
                  poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True,
                  sensor: Mpu6050Sensor | None = None, imu_clock_error: float = 0.0,
-                 imu_mounting_rpy_deg: tuple[float, float, float] | None = None):
+                 imu_mounting_rpy_deg: tuple[float, float, float] | None = None, servo_lag: float = 0.0):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -128,7 +130,8 @@ class SimBoard:
         self.lib.host_port_init(self.hp, m.servo_baud, m.imu_address)
         self.imu = Mpu6050(memoryview(self.ffi.buffer(self.hp.imu_regs)))
         if servos is None:
-            servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}) for s in m.servos]
+            servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}, time_constant=servo_lag,
+                                    deadband=servo_lag > 0) for s in m.servos]
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo)
         self.bus.power(False)
         self.motion = motion or Gravity()

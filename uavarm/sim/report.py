@@ -243,6 +243,7 @@ def sim_command(args) -> int:
         return 2
     settings = replace(closed_loop.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
                        preflight=args.preflight,
+                       servo_lag=None if args.servo_lag_ms is None else args.servo_lag_ms / 1000,
                        drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude])
     label = label_of(args.estimator, args.sets)
     jobs = [(scenario, changes, label, seed, settings) for seed in range(args.seed, args.seed + args.seeds)]
@@ -258,7 +259,9 @@ def sim_command(args) -> int:
         rows.append(summarise([r for r, _ in results], sum(w for _, w in results)))
         rows[-1].label = f"{label} (all {len(results)} seeds)"
     print(f"scenario {scenario.name} ({args.scenario}), IMU {scenario.imu_profile}, "
-          f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}; scored {args.seconds:g} s "
+          f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}, servo lag "
+          f"{(settings.servo_lag if settings.servo_lag is not None else closed_loop.servo_lag_s()) * 1e3:.1f} ms; "
+          f"scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))
     for line in notes(rows[-1], scenario.target):

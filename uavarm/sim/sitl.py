@@ -49,7 +49,7 @@ class Sitl:
     `stop()` (from another thread) or Ctrl-C."""
 
     def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None, **board_options):
-        """board_options: SimBoard's (sensor, imu_mounting_rpy_deg: the hardware as it is)."""
+        """board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag: the hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
         self.speed = speed
@@ -116,10 +116,11 @@ def angles_of(text: str) -> tuple[float, float, float]:
 
 
 def main(scenario: str | None, speed: float, imu: str = "white", seed: int = 0,
-         imu_mounting: tuple[float, float, float] | None = None) -> int:
-    sitl = Sitl(scenario, speed=speed, sensor=Mpu6050Sensor(imu, seed=seed), imu_mounting_rpy_deg=imu_mounting)
+         imu_mounting: tuple[float, float, float] | None = None, servo_lag: float = 0.0) -> int:
+    sitl = Sitl(scenario, speed=speed, sensor=Mpu6050Sensor(imu, seed=seed), imu_mounting_rpy_deg=imu_mounting,
+                servo_lag=servo_lag)
     print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x, IMU {imu} "
-          f"seed {seed}); Ctrl-C stops", flush=True)
+          f"seed {seed}, servo lag {servo_lag * 1000:g} ms); Ctrl-C stops", flush=True)
     try:
         sitl.run()
     except KeyboardInterrupt:
