@@ -42,6 +42,11 @@ typedef struct {
     uint32_t samples;              /* samples taken since the reset (saturates) */
     uint32_t last_sample_us;       /* when the previous one was taken */
     uint32_t gaps;                 /* samples more than 1.5 periods after the previous one */
+    /* the window in which the board has been still (gyro, then accelerometer, per axis;
+     * stabiliser.c, bias_at_rest) */
+    uint16_t still_n;              /* samples in it so far */
+    float still_lo[6], still_hi[6];
+    float still_sum[6];            /* gyro and accelerometer, IMU axes */
     /* the quaternion after each sample, and the time of that sample (for the link) */
     float hist_q[STAB_HISTORY][4];
     uint32_t hist_us[STAB_HISTORY];
@@ -61,7 +66,8 @@ typedef struct {
 void stab_reset(stab_t *s);
 /* One sample taken at now_us: accelerometer in g, gyro in rad/s, both in the IMU's axes.
  * The first sample after a reset starts filters and attitude at rest on it. engaged selects
- * the quaternion estimator's in-flight gains (else it aligns fast with the accelerometer). */
+ * the quaternion estimator's in-flight gains (else it aligns fast with the accelerometer,
+ * and takes the gyro bias from each second the board stands still). */
 void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], uint32_t now_us, bool engaged);
 /* The drone's roll and pitch (rad, Z-Y-X) from its flight controller, measured at stamp_us
  * of its clock, message number seq, arriving at now_us: fused if the model says so and the
