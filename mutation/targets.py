@@ -76,12 +76,14 @@ TARGETS = (
            (("c", "forget_servo_state"), ("c", "sbus_power"), ("c", "sbus_command"), ("c", "sbus_limp"),
             ("c", "note_error_byte"), ("c", "receive_direct"), ("c", "receive_resync"), ("c", "configure"),
             ("c", "take_status"), ("c", "build_refit"), ("c", "sync_fill"), ("c", "run")),
-           ("tests/test_servo_bus.py", "tests/test_hardening.py", "tests/test_fault_injection.py")),
+           ("tests/test_servo_bus.py", "tests/test_service.py", "tests/test_hardening.py",
+            "tests/test_fault_injection.py")),
     Target("stabiliser.c: gyro bias at rest", "firmware_stm32/App/Src/stabiliser.c", (("c", "bias_at_rest"),),
            tuple(f"tests/test_quaternion.py::test_{name}" for name in (
                "a_second_at_rest_measures_the_whole_gyro_bias", "no_bias_is_taken_while_the_board_moves",
                "the_stillness_threshold_is_half_a_degree_per_second", "a_jolt_starts_the_window_again",
-               "gyro_bias_is_learnt_at_rest"))),
+               "gyro_bias_is_learnt_at_rest", "a_vibrating_accelerometer_is_not_still",
+               "each_second_at_rest_measures_the_bias_again"))),
 )
 
 # Never run against a mutant: they compare generated/ with the generator's output, which

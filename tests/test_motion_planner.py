@@ -98,6 +98,49 @@ def test_started_arm_follows_a_target_just_outside_the_hold_radius():
     np.testing.assert_allclose(list(m.aim), expect, atol=TOL_RAD)
 
 
+def test_a_started_arm_with_no_target_stays_put():
+    for q in STARTS:
+        m = started(q)
+        speed, q_next = tick(m)
+        assert speed == LIB.MOTION_PARK_SPEED
+        np.testing.assert_array_equal(q_next, np.asarray(q, np.float32))
+
+
+def test_an_arm_never_started_goes_nowhere():
+    m = FFI.new("motion_t *")
+    assert not LIB.motion_go(m, list(map(float, PARK)))
+    assert not LIB.motion_head_for(m, list(map(float, ee(PARK))), list(map(float, ee(PARK))))
+
+
+def test_following_turns_joint_1_no_further_than_the_window():
+    """A target carried round the axis, 5 deg a tick, to 120 deg from where the goal put
+    joint 1: joint 1 stops at follow_window_deg (90) from there, and the arm reaches in that
+    plane."""
+    q = np.radians([0.0, 40.0, -60.0])
+    m = started(q)
+    r = math.hypot(*ee(q)[:2])
+    for deg in range(5, 125, 5):
+        turn = math.radians(deg)
+        target = np.array([r * math.cos(turn), -r * math.sin(turn), ee(q)[2]])   # joint 1 at +deg
+        tick(m, target)
+    window = math.radians(MODEL.motion.follow_window_deg)
+    assert m.aim[0] == pytest.approx(window, abs=1e-5)
+    assert m.given_up & LIB.KIN_BRANCH_Q1
+    expect, *_ = branch_ik(MODEL, target, [window, q[1], q[2]], -1.0, hold=True)
+    np.testing.assert_allclose(list(m.aim), expect, atol=TOL_RAD)
+
+
+def test_a_goal_with_the_arm_straight_keeps_the_elbow_it_came_with():
+    """joint 3 at exactly 0 belongs to neither elbow: following on from it keeps the sign the
+    arm had (here +), so a target just off the straight arm is reached on that side."""
+    m = started(np.radians([0.0, 30.0, 60.0]))
+    straight = np.radians([0.0, 30.0, 0.0])
+    assert LIB.motion_go(m, list(map(float, straight)))
+    near = np.radians([0.0, 20.0, 30.0])
+    tick(m, ee(near))
+    np.testing.assert_allclose(list(m.aim), near, atol=TOL_RAD)
+
+
 def test_start_refuses_an_unsafe_pose():
     for q in ([0.0, 0.0, math.radians(120.0)], [0.0, math.radians(100.0), math.radians(100.0)], [math.nan, 0.0, 0.0]):
         m = FFI.new("motion_t *")
@@ -172,7 +215,7 @@ def test_head_for_out_of_reach_at_the_tilt_heads_for_the_level_pose():
     its level pose (and follows from there), instead of refusing it."""
     m = started(PARK)
     p_level = ee(np.radians([30.0, 40.0, -60.0]))
-    assert LIB.motion_head_for(m, [400.0, 0.0, -100.0], list(map(float, p_level)))
+    assert LIB.motion_head_for(m, [-200.0, 0.0, -100.0], list(map(float, p_level)))   # 60 mm too far
     np.testing.assert_allclose(ee(list(m.aim)), p_level, atol=TOL_MM)
     assert safe(list(m.aim), MARGIN - 1e-4)
 
@@ -210,7 +253,12 @@ def test_routes_are_clear_and_straight_where_the_straight_move_is():
             if roomy:
                 assert m.vias == 0, "a clear straight move taken by a detour"
                 straight += 1
-            tucked += m.vias > 0
+            if m.vias > 0:
+                tucked += 1
+                _, q_next = tick(m)          # the first step heads for the first corner
+                way, step = route[1] - start, q_next - start
+                assert np.linalg.norm(np.cross(way, step)) <= 1e-4 * np.linalg.norm(way) * np.linalg.norm(step)
+                assert np.dot(way, step) > 0
     assert straight >= 20 and tucked >= 5, (straight, tucked, refused)
 
 

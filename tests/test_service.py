@@ -118,6 +118,19 @@ def test_service_commands_are_refused_while_engaged_or_disabled():
     assert all(s.register("torque_enable") == 1 for s in board.bus.servos)
 
 
+def test_service_commands_are_refused_while_the_servos_start():
+    """Right after enable the servos boot and are configured: torque and jog wait for that."""
+    for name, fields in (("torque", {"on": 0}), ("jog", {"joint": 1, "mode": 0, "value": 0.1})):
+        board = make_board()
+        inv = Invariants(board, BusLog(board))
+        inv.run(0.6)
+        board.send("enable", on=1)
+        inv.run(0.01)
+        board.send(name, **fields)
+        after_heartbeat(inv)
+        assert refusal(board) == "servos_starting", name
+
+
 def test_engage_while_limp_turns_the_torque_on_and_parks_first():
     board, inv = parked()
     limp_and_turn(inv, 0, PARK_UNITS[0] + 60)
@@ -176,6 +189,17 @@ def test_jog_while_limp_turns_the_torque_on_and_goes_there():
     assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
     assert shaft_units(board)[2] == pytest.approx(PARK_UNITS[2], abs=1.5)
     assert all(s.register("torque_enable") == 1 for s in board.bus.servos)
+
+
+def test_a_jog_taken_while_limp_clears_the_last_refusal():
+    board, inv = parked()
+    limp_and_turn(inv, 2, PARK_UNITS[2] + 30)
+    board.send("jog", joint=4, mode=0, value=0.1)
+    after_heartbeat(inv)
+    assert refusal(board) == "bad_jog"
+    board.send("jog", joint=3, mode=1, value=-30.0)
+    after_heartbeat(inv)
+    assert refusal(board) == "none"
 
 
 def test_engage_from_a_jogged_pose_parks_first():
