@@ -212,8 +212,9 @@ TRUTH_ZERO = [520, 497, 505]       # the units each servo reads with its joint a
 TRUTH_DIRECTION = [1, -1, 1]       # joint 2's servo mounted the other way round
 
 
-def enabled_sitl():
-    s = run_sitl()
+def enabled_sitl(**board_options):
+    """A SITL (board_options: the hardware as it is) and a link to it, the arm enabled and parked."""
+    s = run_sitl(**board_options)
     arm = ArmLink(s.device)
     arm.enable()
     parked = [name for name, _ in messages.STATES].index("parked")

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 
 import numpy as np
 import pytest
@@ -17,9 +16,11 @@ from scipy import signal
 
 from uavarm.calibrate import fit, guide
 from uavarm.calibrate.fit import CalibrationError
-from uavarm.link import ArmLink, messages
+from uavarm.link import ArmLink
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
+
+from test_calibrate import enabled_sitl
 
 SPEED = 2.0                        # simulated seconds per real second
 UNITS_PER_S = 180.0                # a goal ramp about the park speed's
@@ -63,18 +64,6 @@ def test_the_fit_refuses_a_shaft_pushed_about():
 
 
 # ---------------------------------------------------------------- through the SITL
-
-def enabled_sitl(**board_options):
-    s = Sitl(speed=SPEED, **board_options)
-    threading.Thread(target=s.run, daemon=True).start()
-    arm = ArmLink(s.device)
-    arm.enable()
-    parked = [name for name, _ in messages.STATES].index("parked")
-    end = time.monotonic() + 10
-    while arm.next_heartbeat()["state"] != parked:
-        assert time.monotonic() < end, "the arm did not park"
-    return s, arm
-
 
 @pytest.fixture
 def model_copy(tmp_path):

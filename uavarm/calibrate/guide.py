@@ -199,7 +199,7 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S) -> b
     # each tick's goal only as the next is sent: one tick of the lag is the jog's, not the
     # servo's (following the tilt, at the working speed, it catches up within the tick).
     tick = 1.0 / model.sample_rate
-    measured = float(np.mean([f.lag for f in fits])) - tick
+    measured = max(0.0, float(np.mean([f.lag for f in fits])) - tick)
     lead = max(0.0, model.estimator.lead_time + measured - model.servo_response_lag)
     print(f"servo lag {measured * 1000:.1f} ms (the joints' mean less the {tick * 1000:.0f} ms tick the jog adds; "
           f"was {model.servo_response_lag * 1000:.1f}): lead time "
