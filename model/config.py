@@ -150,7 +150,8 @@ ACCEL_BIAS_MAX_G = 0.25
 ACCEL_SCALE_RANGE = (0.9, 1.1)
 # An AX-12A's lag behind its goal until measured: inside the factory compliance slope (32
 # units) its duty, and at no load its speed, is proportional to the error, so the error
-# decays with 32 units / (59 rpm = 1207 units/s) = 26.5 ms. A servo lagging more than
+# decays with 32 units / (59 rpm = 1207 units/s) = 26.5 ms (an assumption from the servo's
+# control law, not a measured figure: `uavarm calibrate lag` measures it). A servo lagging more than
 # SERVO_LAG_MAX_S is too slow to stabilise anything (or is not following at all).
 SERVO_LAG_ASSUMED_S = 0.0265
 SERVO_LAG_MAX_S = 0.15

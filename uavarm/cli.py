@@ -238,7 +238,7 @@ def parser() -> argparse.ArgumentParser:
                          "(default: %(default)s)")
     sm.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=None, metavar="MS",
                     help="how far the simulated servos' shafts lag their speed-limited motion, whatever the model "
-                         "file says (first order; default: the no-load AX-12A's 26.5)")
+                         "file says (first order; default: as the model file's servo.response_lag says)")
     sm.add_argument("--seeds", type=_integer(1), default=1, help="seeds to run (default: %(default)s)")
     sm.add_argument("--seed", type=_integer(0), default=0, help="first seed (default: %(default)s)")
     sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,

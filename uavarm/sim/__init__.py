@@ -3,6 +3,6 @@ sensor and register models (imu_model, mpu6050_sim), the AX-12A bus (ax12_sim), 
 firmware on a simulated board (board), the board behind a serial port (sitl), the closed loop
 and its tables (closed_loop, report; `simulate` and `Settings` are importable from here) and the
 workspace figure (workspace)."""
-from .closed_loop import Run, Settings, ee_error, scenario_flight, servo_lag_s, simulate
+from .closed_loop import Run, Settings, ee_error, scenario_flight, servo_lag_of, simulate
 
-__all__ = ["Run", "Settings", "ee_error", "scenario_flight", "servo_lag_s", "simulate"]
+__all__ = ["Run", "Settings", "ee_error", "scenario_flight", "servo_lag_of", "simulate"]

@@ -33,17 +33,12 @@ from ..build.variants import Variant
 
 US = 1_000_000
 KEEP_ALIVE_S = 0.25
-COMPLIANCE_SLOPE_UNITS = 32          # AX-12A factory CW/CCW Compliance Slope
 
 
-def servo_lag_s() -> float:
-    """Small-signal time constant of an AX-12A at no load: inside the compliance slope its
-    PWM duty is proportional to the position error (full duty 32 units away, the factory
-    slope), and at no load the speed is proportional to duty, so the error decays with
-    tau = slope / no-load speed = 32 units / (59 rpm = 1207 units/s) = 26.5 ms. An
-    assumption from the servo's control law, not a measured figure: measure yours."""
-    no_load = ax12_sim.NO_LOAD_RPM * ax12_sim.UNITS_PER_S_PER_RPM
-    return COMPLIANCE_SLOPE_UNITS / no_load
+def servo_lag_of(settings: "Settings", model) -> float:
+    """s: how far the simulated shafts lag: the hardware's if the settings say, else as the
+    model file believes (servo.response_lag)."""
+    return model.servo_response_lag if settings.servo_lag is None else settings.servo_lag
 
 
 @dataclass
@@ -53,7 +48,7 @@ class Settings:
     preflight: float = 10.0          # s on the ground after power-up (still, level, motors off)
     engage_at: float = 1.5           # s after the flight starts (enable at power-up)
     poll_us: int = 250               # main-loop period of the simulated board
-    servo_lag: float | None = None   # s; None: servo_lag_s()
+    servo_lag: float | None = None   # s; None: the model file's servo.response_lag
     servo_deadband: bool = True      # the compliance margin: no torque within 1 unit of the goal
     drone_attitude: bool | None = None   # send the link attitude; None: when the firmware fuses it
 
@@ -174,7 +169,7 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     motion = drone.FlightMotion(flight, model.mount_offset)
     sensor = imu_model.Mpu6050Sensor(scenario.imu_errors(), seed=int(np.random.default_rng([seed, 3]).integers(2 ** 31)),
                                      vibration_from=st.preflight)
-    lag = servo_lag_s() if st.servo_lag is None else st.servo_lag
+    lag = servo_lag_of(st, model)
     board = SimBoard(model, servos=make_servos(model, lag, st.servo_deadband), motion=motion,
                      poll_us=st.poll_us, lib=(variant.ffi, variant.lib), record=False, sensor=sensor)
     board.bus.lazy = True                   # servos stepped at bus traffic; sync() before reading them

@@ -208,7 +208,8 @@ def main(argv=None) -> int:
     settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
                      f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
                      f"into the flight and {settings.settle:.0f} s settling; main loop every {settings.poll_us} us; "
-                     f"servo lag {closed_loop.servo_lag_s() * 1e3:.1f} ms; IMU profile per scenario "
+                     f"servo lag {closed_loop.servo_lag_of(settings, variants.build({}).model) * 1e3:.1f} ms; "
+                     f"IMU profile per scenario "
                      f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
                      f"extra model edits: {args.sets or 'none'}")
     md = ["# Closed-loop simulator report", "", "Command: `make sim-report` "
@@ -260,7 +261,7 @@ def sim_command(args) -> int:
         rows[-1].label = f"{label} (all {len(results)} seeds)"
     print(f"scenario {scenario.name} ({args.scenario}), IMU {scenario.imu_profile}, "
           f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}, servo lag "
-          f"{(settings.servo_lag if settings.servo_lag is not None else closed_loop.servo_lag_s()) * 1e3:.1f} ms; "
+          f"{closed_loop.servo_lag_of(settings, variants.build(changes).model) * 1e3:.1f} ms; "
           f"scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))

@@ -85,19 +85,16 @@ static __attribute__((noinline)) void bias_at_rest(stab_t *s, const float accel_
     static const float ZERO[3] = { 0.0f, 0.0f, 0.0f };
     const float v[6] = { gyro_rad_s[0], gyro_rad_s[1], gyro_rad_s[2], accel_g[0], accel_g[1], accel_g[2] };
     bool still = s->still_n > 0u;
-    for (int i = 0; i < 6 && still; ++i) {
-        const float lo = fminf(s->still_lo[i], v[i]), hi = fmaxf(s->still_hi[i], v[i]);
-        still = hi - lo <= (i < 3 ? STILL_GYRO_SPREAD : STILL_ACCEL_SPREAD);
+    for (int i = 0; i < 6; ++i) {
+        s->still_lo[i] = fminf(s->still_lo[i], v[i]);
+        s->still_hi[i] = fmaxf(s->still_hi[i], v[i]);
+        still = still && s->still_hi[i] - s->still_lo[i] <= (i < 3 ? STILL_GYRO_SPREAD : STILL_ACCEL_SPREAD);
     }
-    if (!still) {
+    if (!still) {   /* a window starts at this sample */
         s->still_n = 0u;
         memset(s->still_sum, 0, sizeof s->still_sum);
         memcpy(s->still_lo, v, sizeof v);
         memcpy(s->still_hi, v, sizeof v);
-    }
-    for (int i = 0; i < 6; ++i) {
-        s->still_lo[i] = fminf(s->still_lo[i], v[i]);
-        s->still_hi[i] = fmaxf(s->still_hi[i], v[i]);
     }
     for (int i = 0; i < 6; ++i) s->still_sum[i] += v[i];
     if (++s->still_n == STILL_SAMPLES) {
