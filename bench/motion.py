@@ -3,9 +3,9 @@ and at set positions on the edge of the workspace under heavy rocking, on the si
 board (the firmware's host build), judged by plain geometry written here.
 
 For each scenario: the range of joint 1's commanded angle once settled (2 s after engage),
-its steps of more than 20 deg between consecutive goals, the largest step, and the moves
-whose path (every joint at the same speed, each arriving at its own time, 9 samples) passes
-a joint limit, the body plane or a leg.
+its steps of more than 20 deg between consecutive goals, the largest step, the moves whose
+path (every joint at the same speed, each arriving at its own time, 9 samples) passes a
+joint limit, the body plane or a leg, and the heartbeats that flag the target out of reach.
 """
 from __future__ import annotations
 
@@ -13,10 +13,12 @@ import math
 
 import numpy as np
 
+from uavarm.link import messages
 from uavarm.sim import ax12_sim
 from uavarm.sim.board import Gravity, Rocking, SimBoard, baud_register
 
 UNIT_RAD = math.radians(300.0) / 1023      # AX-12A: 1023 position units over 300 deg
+OUT_OF_REACH = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
 
 
 def scenarios():
@@ -83,16 +85,19 @@ def run(m, motion, target, seconds, settle=2.0):
     q1 = np.degrees(q[:, 0])
     steps = np.abs(np.diff(q1))
     through = sum(bool(unsafe(m, servo_path(a, b)).any()) for a, b in zip(q, q[1:]))
+    beats = [hb["faults"] & OUT_OF_REACH for hb in board.heartbeats[-round(2 * seconds):]]   # 2 Hz
     return {"range": float(q1.max() - q1.min()), "jumps": int((steps > 20.0).sum()), "largest": float(steps.max()),
-            "through": through, "moves": len(q) - 1, "engaged": board.heartbeats[-1]["engaged"]}
+            "through": through, "moves": len(q) - 1, "engaged": board.heartbeats[-1]["engaged"],
+            "out": sum(map(bool, beats)), "beats": len(beats)}
 
 
 def report(m) -> None:
     print("\nMotion on the simulated board (bench/motion.py): joint 1's commanded angle once settled, "
           "and every move's path judged by plain geometry.\n")
     print("| scenario | joint-1 range (deg) | steps > 20 deg | largest step (deg) | moves through a limit, "
-          "the body or a leg |")
-    print("|---|---:|---:|---:|---:|")
+          "the body or a leg | heartbeats out of reach |")
+    print("|---|---:|---:|---:|---:|---:|")
     for name, motion, target, seconds in scenarios():
         r = run(m, motion, target, seconds)
-        print(f"| {name} | {r['range']:.1f} | {r['jumps']} | {r['largest']:.1f} | {r['through']} of {r['moves']} |")
+        print(f"| {name} | {r['range']:.1f} | {r['jumps']} | {r['largest']:.1f} | {r['through']} of {r['moves']} "
+              f"| {r['out']} of {r['beats']} |")

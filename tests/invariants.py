@@ -118,8 +118,10 @@ class Invariants:
 
     def check_steady(self, since: float, still: bool = False, dither: int = 1, min_gap: float = 0.1) -> dict:
         """At a fixed set position from `since` on: no joint hunts. On a still board no goal
-        turns back at all; on a moving one no goal turns back twice within `min_gap` s (an
-        oscillation faster than the tilt that drives it). Moves of up to `dither` units
+        turns back at all; on a moving one no goal turns back and forth, turn after turn,
+        less than `min_gap` s apart (an oscillation faster than the tilt that drives it:
+        three turns within twice `min_gap`). A single quick turn, where a fast move meets
+        the target's own turn, is not an oscillation. Moves of up to `dither` units
         (rounding flips of a still target) do not count. Returns the figures: per joint the
         range (units), the largest step (units per tick) and the number of turns."""
         g = self.goals(since)
@@ -127,9 +129,8 @@ class Invariants:
         for j, at in enumerate(turns):
             if still:
                 assert not at, f"joint {j + 1}'s goal turns back {len(at)} times on a still board since {since:.2f} s"
-            gaps = np.diff(at) * TICK
-            assert not len(gaps) or gaps.min() >= min_gap - 1e-9, \
-                f"joint {j + 1} turns back twice within {gaps.min():.3f} s (hunting)"
+            span = quickest_three_turns(at)
+            assert span >= 2 * min_gap - 1e-9, f"joint {j + 1} turns back and forth three times within {span:.3f} s (hunting)"
         steps = np.abs(np.diff(g, axis=0)).max(axis=0) if len(g) > 1 else np.zeros(3)
         return {"range": g.max(axis=0) - g.min(axis=0), "step": steps, "turns": [len(t) for t in turns]}
 
@@ -202,6 +203,12 @@ class Invariants:
         self.board.run(0.05)
         assert not [p for p in self.log.tx if p.start > t_off + 1e-9]
         self.check()
+
+
+def quickest_three_turns(turns: list[int]) -> float:
+    """s: the shortest time any three consecutive turns (tick indices) span; inf if fewer."""
+    spans = (np.asarray(turns[2:]) - np.asarray(turns[:-2])) * TICK
+    return float(spans.min()) if len(spans) else math.inf
 
 
 def turning_points(values, dither: int = 1) -> list[int]:

@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from invariants import Invariants
+from invariants import Invariants, quickest_three_turns, turning_points
 from simboard_tools import FAULT, MODEL, PARK_UNITS, UNIT_RAD, BusLog, level_ik_ok, make_board, pose_ok, \
     ready, shaft_units, units_to_joints
 from uavarm.sim.board import Gravity, Rocking
@@ -105,6 +105,21 @@ def test_edge_set_positions_under_heavy_rocking(name, amp_deg):
           f"{fig['turns']}, {inv.segments} moves checked, out_of_reach in {out} of {len(board.heartbeats)} heartbeats")
     assert step1 <= 20.0
     assert board.heartbeats[-1]["engaged"] == 1
+
+
+def test_the_hunting_check_tells_an_oscillation_from_a_fast_move_meeting_a_turn():
+    """What the tests above call hunting: a goal that swings 3 units back and forth every 3
+    ticks (here on top of a slow ramp) turns three times in 0.06 s; a fast move that ends
+    where the target turns back 6 ticks later turns twice in 0.06 s, and then not again for
+    a second: not an oscillation. (TICK: 10 ms.)"""
+    ramp = np.arange(200) * 0.2
+    hunting = ramp + 3.0 * ((np.arange(200) // 3) % 2)
+    assert quickest_three_turns(turning_points(hunting)) <= 0.06 + 1e-9
+    swing_then_turn = np.concatenate([np.linspace(644.0, 555.0, 10), [556.0, 556.0, 557.0, 557.0, 557.0, 557.0],
+                                      np.linspace(556.0, 500.0, 100), np.linspace(501.0, 560.0, 100)])
+    turns = turning_points(swing_then_turn)
+    assert len(turns) == 3 and (turns[1] - turns[0]) * 0.01 <= 0.06 + 1e-9
+    assert quickest_three_turns(turns) >= 1.0
 
 
 def test_a_set_position_past_a_leg_is_reached_round_it():

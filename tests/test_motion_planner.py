@@ -130,6 +130,50 @@ def test_following_turns_joint_1_no_further_than_the_window():
     np.testing.assert_allclose(list(m.aim), expect, atol=TOL_RAD)
 
 
+def round_axis(deg, r, z):
+    """The point r mm from joint 1's axis, at depth z, that joint 1 faces at +deg."""
+    a = math.radians(deg)
+    return np.array([r * math.cos(a), -r * math.sin(a), z])
+
+
+def test_a_target_that_crossed_the_axis_is_followed_on_the_far_side():
+    """Past the window's edge, the target goes straight across joint 1's axis (3 mm from it:
+    joint 1 held) and comes out on the far side, then round toward where the arm started.
+    Its plane reached the other way round is then well inside the window: the arm follows
+    it there and reaches it, instead of staying at the edge for as long as it stays on the
+    far side."""
+    q = np.radians([0.0, 40.0, -60.0])
+    m = started(q)
+    r, z = math.hypot(*ee(q)[:2]), ee(q)[2]
+    path = [round_axis(deg, r, z) for deg in range(5, 105, 5)]            # to the edge and past
+    a, b = round_axis(100.0, r, z), round_axis(-80.0, r, z)
+    side = round_axis(10.0, 3.0, 0.0) * [1, 1, 0]                        # 3 mm off the axis
+    path += [a + (b - a) * s + side * math.sin(math.pi * s) for s in np.linspace(0.0, 1.0, 60)]
+    path += [round_axis(deg, r, z) for deg in range(-80, -29, 2)]          # round to -30 deg
+    for target in path:
+        tick(m, target)
+    assert m.given_up == 0
+    expect, *_ = branch_ik(MODEL, path[-1], [math.radians(-30.0), q[1], q[2]], -1.0, hold=False)
+    np.testing.assert_allclose(list(m.aim), expect, atol=TOL_RAD)
+    np.testing.assert_allclose(ee(list(m.aim)), path[-1], atol=TOL_MM)
+
+
+def test_a_target_circling_the_axis_is_followed_within_the_window_every_turn():
+    """A target carried three times round the axis: joint 1 never aims further than the
+    window from where the goal put it, and each time the target comes back round to there
+    the arm reaches it again (however far round the branch it follows has run)."""
+    q = np.radians([0.0, 40.0, -60.0])
+    m = started(q)
+    r, z = math.hypot(*ee(q)[:2]), ee(q)[2]
+    window = math.radians(MODEL.motion.follow_window_deg)
+    for turn in range(3):
+        for deg in range(5, 365, 5):
+            tick(m, round_axis(deg, r, z))
+            assert abs(m.aim[0]) <= window + 1e-6
+        assert m.given_up == 0, turn
+        np.testing.assert_allclose(list(m.aim), q, atol=TOL_RAD)
+
+
 def test_a_goal_with_the_arm_straight_keeps_the_elbow_it_came_with():
     """joint 3 at exactly 0 belongs to neither elbow: following on from it keeps the sign the
     arm had (here +), so a target just off the straight arm is reached on that side."""

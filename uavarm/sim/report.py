@@ -180,13 +180,14 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
     ap.add_argument("--jobs", type=int, default=2)
     args = ap.parse_args(argv)
+    settings = replace(closed_loop.Settings(), seconds=args.seconds)
     try:
         changes = build_variants(args.estimators, args.sets)
         loaded = {name: scenarios.load(name) for name in args.scenarios}
+        servo_lag = closed_loop.servo_lag_of(settings, variants.build({}).model)
     except (variants.VariantError, scenarios.ScenarioError, generated.StaleCode) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    settings = replace(closed_loop.Settings(), seconds=args.seconds)
     jobs = [(loaded[s], changes[e], e, seed, settings)
             for s in args.scenarios for e in args.estimators for seed in range(args.seeds)]
     t0 = time.monotonic()
@@ -208,7 +209,7 @@ def main(argv=None) -> int:
     settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
                      f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
                      f"into the flight and {settings.settle:.0f} s settling; main loop every {settings.poll_us} us; "
-                     f"servo lag {closed_loop.servo_lag_of(settings, variants.build({}).model) * 1e3:.1f} ms; "
+                     f"servo lag {servo_lag * 1e3:.1f} ms; "
                      f"IMU profile per scenario "
                      f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
                      f"extra model edits: {args.sets or 'none'}")

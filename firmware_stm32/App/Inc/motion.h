@@ -80,7 +80,8 @@ typedef enum { MOTION_PARK_SPEED = 0, MOTION_TRANSIT_SPEED = 1, MOTION_WORKING_S
  * and always when pinned (a set position on the axis has no direction of its own, so a tilt
  * is made up for in joint 1's plane only); joint 1 stays within the model's follow_window
  * of where the goal put it (further round, the arm reaches in the plane at the window's
- * edge); given_up says what was given up (KIN_BRANCH_*). Then one step toward the next
+ * edge, and goes over to the far side of the axis once the target's plane, faced half a
+ * turn over, is within half the window); given_up says what was given up (KIN_BRANCH_*). Then one step toward the next
  * corner or the aim, all joints in proportion: at the park speed unless following, the
  * transit speed until the arm is at its aim, then the working speed. The caller checks it
  * (kin_check_move from the last goal, MOTION_GOAL_MARGIN), asks motion_smaller for less

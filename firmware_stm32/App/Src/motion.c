@@ -149,9 +149,19 @@ static inline void follow(motion_t *m, const float p_base[3], bool pinned)
     static const float RELEASE2 = MODEL_AXIS_RELEASE_RADIUS * MODEL_AXIS_RELEASE_RADIUS;
     const float rho2 = p_base[0] * p_base[0] + p_base[1] * p_base[1];
     if (m->q1_held ? rho2 > RELEASE2 : rho2 < HOLD2) m->q1_held = !m->q1_held;   /* (NaN: as it was) */
+    const bool hold = m->q1_held || pinned;
     /* the branch follows the target (m->from) even where the arm stops short of it */
-    m->given_up = kin_ik_branch(p_base, m->from, m->elbow, m->q1_held || pinned, m->aim, m->from);
-    const float off = m->from[0] - m->home;
+    m->given_up = kin_ik_branch(p_base, m->from, m->elbow, hold, m->aim, m->from);
+    float off = m->from[0] - m->home;
+    if (fabsf(off) > MODEL_FOLLOW_WINDOW && fabsf(off) > FM_PI - 0.5f * MODEL_FOLLOW_WINDOW) {
+        /* Past the window, and the target's plane reached the other way round (the same
+         * plane, joint 1 half a turn over) is well inside it: the branch goes over to that
+         * side. Else a target that passed the axis would keep joint 1 at the window's edge
+         * for as long as it stays on the far side. */
+        const float over[3] = { m->home + off - (off > 0.0f ? FM_PI : -FM_PI), m->from[1], m->from[2] };
+        m->given_up = kin_ik_branch(p_base, over, m->elbow, hold, m->aim, m->from);
+        off = m->from[0] - m->home;
+    }
     if (fabsf(off) > MODEL_FOLLOW_WINDOW) {
         /* further round the axis than the window: reach in the plane at its edge */
         const float edge[3] = { m->home + (off > 0.0f ? MODEL_FOLLOW_WINDOW : -MODEL_FOLLOW_WINDOW), m->from[1], m->from[2] };
