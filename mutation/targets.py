@@ -77,7 +77,7 @@ TARGETS = (
             ("c", "note_error_byte"), ("c", "receive_direct"), ("c", "receive_resync"), ("c", "configure"),
             ("c", "take_status"), ("c", "build_refit"), ("c", "sync_fill"), ("c", "run")),
            ("tests/test_servo_bus.py", "tests/test_service.py", "tests/test_hardening.py",
-            "tests/test_fault_injection.py")),
+            "tests/test_fault_injection.py", "tests/test_fault_timing.py")),
     Target("stabiliser.c: gyro bias at rest", "firmware_stm32/App/Src/stabiliser.c", (("c", "bias_at_rest"),),
            tuple(f"tests/test_quaternion.py::test_{name}" for name in (
                "a_second_at_rest_measures_the_whole_gyro_bias", "no_bias_is_taken_while_the_board_moves",

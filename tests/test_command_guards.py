@@ -3,10 +3,16 @@ clears a refusal, which servo faults refuse engage, what a repeated engage does.
 
 Oracles: the documented command semantics (docs/firmware.md: refusal table, heartbeat fields), the AX-12A
 e-Manual's status error byte, the Moving Speed values of the model file's speeds."""
+import math
+import subprocess
+import sys
+
+import numpy as np
 import pytest
 
+import oracles
 from invariants import Invariants
-from simboard_tools import FAULT, IDS, PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
+from simboard_tools import FAULT, IDS, MODEL, PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED, BusLog, make_board, ready, sync_goal_speed
 from test_fault_injection import TARGET, ReplyTap, at, engaged_board, set_position, with_error
 from uavarm.link import messages
 
@@ -129,3 +135,36 @@ def test_a_new_set_position_while_parking_before_engage_waits_for_the_park():
         set_position(board, TARGET)
         inv.run(0.25)
     assert at(board, TARGET)
+
+
+HOLD_AT_THE_BODY = """
+import math, sys
+from uavarm.build import firmware
+ffi, lib = firmware.default()
+q0 = [float(v) for v in sys.argv[1:4]]
+m = ffi.new("motion_t *")
+assert lib.motion_start(m, q0), "a safe pose"
+q = ffi.new("float[3]")
+lib.app_next_goal(m, ffi.NULL, False, q0, q)
+print(*[repr(v) for v in q])
+"""
+
+
+def test_a_last_goal_too_close_to_the_body_to_leave_is_held_and_the_check_ends():
+    """The last goal sent is a safe pose with the end effector 0.05 mm below the body plane:
+    inside the joints' check, but not clear by the goals' margin, so every step from it is
+    refused, the arm's own hold included. The command path gives that goal again (the
+    servos stay where they are) and returns; a check that kept asking would hang the board
+    (run apart, with a timeout, so such a hang fails here)."""
+    m = MODEL
+    q2 = math.radians(100.0)
+    elbow_z = -m.L1 - m.L2 * math.cos(q2)
+    reach = (m.body_z - 0.05 - elbow_z) / -m.L3               # cos(q2 + q3) for the EE at z = -0.05 mm
+    q0 = np.array([0.0, q2, math.acos(reach) - q2], dtype=np.float32)
+    status, _ = oracles.check_pose(m, q0.astype(float))
+    assert status[0] == 0 and oracles.arm_points(m, q0.astype(float))[2][2] == pytest.approx(-0.05, abs=1e-3)
+    out = subprocess.run([sys.executable, "-c", HOLD_AT_THE_BODY, *map(repr, q0.tolist())],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert np.array(out.stdout.split(), dtype=np.float32).tolist() == q0.tolist()
+

@@ -425,6 +425,71 @@ def test_random_streams_stay_in_bounds(chunks, size):
             assert p.p.id <= 0xFD and p.p.error <= 0x7F
 
 
+NEED, COMPLETE, BAD, TOO_LONG = 0, 1, 2, 3
+
+
+def reference_parse(stream: bytes, size: int):
+    """The resynchronising rules of dxl_protocol.h, applied by brute force to the whole
+    stream: per byte, every start not yet discarded, newest first. Yields (result, packet)
+    per byte. A good packet ending on the byte wins (the newest of them); else a bad
+    checksum; else a header whose LEN just arrived announcing more than `size` bytes
+    (still within the protocol's 250)."""
+    base = 0                                      # starts before this were discarded
+    for i in range(len(stream)):
+        result, packet = NEED, None
+        for s in range(i, base - 1, -1):
+            b, n = stream[s:i + 1], i + 1 - s
+            if b[0] != 0xFF or (n >= 2 and b[1] != 0xFF) or (n >= 3 and b[2] > 0xFD):
+                continue
+            if n < 4 or b[3] < 2:
+                continue
+            total = b[3] + 4
+            if total > size:
+                if n == 4 and total <= 254 and result == NEED:
+                    result = TOO_LONG
+                continue
+            if n < 5 or b[4] > 0x7F or n != total:
+                continue
+            if ~sum(b[2:-1]) & 0xFF == b[-1]:
+                result, packet, base = COMPLETE, (b[2], b[4], bytes(b[5:-1])), s + 1
+                break
+            result = BAD
+        yield result, packet
+
+
+def overlapping_packets():
+    """Streams where packets start inside packets: good, truncated, corrupted and too-long
+    packets, headers cut short, and edgy bytes, in any order."""
+    def cut(pkt, k):
+        return pkt[:max(1, k % len(pkt))]
+
+    def corrupt(pkt, k):
+        b = bytearray(pkt)
+        b[-1] ^= 1 + k % 255
+        return bytes(b)
+
+    piece = st.one_of(
+        valid_status(max_params=12),
+        st.builds(cut, valid_status(max_params=12), u8),
+        st.builds(corrupt, valid_status(max_params=12), u8),
+        st.builds(lambda i, n: bytes([0xFF, 0xFF, i, n]), st.integers(0, 0xFD), st.integers(2, 60)),
+        st.lists(edgy_bytes, max_size=6).map(bytes),
+    )
+    return st.lists(piece, max_size=10).map(b"".join)
+
+
+@settings(SETTINGS, max_examples=400)
+@given(stream=overlapping_packets(), size=st.integers(6, 24))
+def test_every_byte_does_what_the_written_rules_say(stream, size):
+    p = Parser(size=size)
+    for i, (want, packet) in enumerate(reference_parse(stream, size)):
+        got = p.lib.dxl_parse_byte(p.p, stream[i])
+        assert got == want, (i, stream[:i + 1].hex(" "))
+        if want == COMPLETE:
+            assert p.packet() == packet
+    assert p.guard_intact()
+
+
 def test_newest_header_wins_when_two_packets_end_together():
     good = status(7, 0, b"\x10\x02")
     # A fake header whose packet takes `good` but its last byte as parameters and that

@@ -19,7 +19,7 @@ one microsecond or millisecond for what is timed in them).
 import pytest
 
 from invariants import Invariants
-from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, ready, servo_c
+from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, ready, run_until, servo_c
 from test_fault_injection import TARGET, engaged_board, set_position
 from uavarm.link import llcp, messages
 from uavarm.sim import ax12_sim
@@ -284,6 +284,39 @@ def test_servo_timeout_after_one_retry(missed):
         failed |= bool(servo_c(board, 1).failed)
     assert board.bus.servo(IDS[1]).skip == 0
     assert failed == (missed > SERVO_READ_RETRIES)
+
+
+class ShyStatusServo(ax12_sim.AX12):
+    """An AX-12A that leaves the next `skip` status READs (from Moving Speed, register 32: the
+    running reads, not the configuration's) unanswered."""
+    skip = 0
+
+    def _on_packet(self, pkt):
+        if pkt[2] == self.id and pkt[4] == ax12_sim.INST_READ and pkt[5] == 32 and self.skip > 0:
+            self.skip -= 1
+            return None
+        return super()._on_packet(pkt)
+
+
+def test_the_first_reads_after_a_power_cycle_keep_their_retry():
+    """Disabled and enabled again, each servo leaves its first status read unanswered: the
+    retry makes up for it, as for any read (a retry count left over from before the power
+    cut would not)."""
+    servos = [ShyStatusServo(s.id, position=float(round(PARK_UNITS[k])), table={"baud_rate": baud_register(MODEL.servo_baud)})
+              for k, s in enumerate(MODEL.servos)]
+    board = SimBoard(MODEL, servos=servos)
+    board.send("enable", on=1)
+    assert run_until(board, lambda: ready(board), 1.0) is not None
+    board.send("enable", on=0)
+    board.run(0.1)
+    for s in servos:
+        s.skip = SERVO_READ_RETRIES
+    board.send("enable", on=1)
+    failed = False
+    for _ in range(round(0.5 * 1e6 / board.poll_us)):
+        board.step(board.poll_us)
+        failed |= any(servo_c(board, k).failed for k in range(3))
+    assert [s.skip for s in servos] == [0, 0, 0] and not failed
 
 
 # ---------------------------------------------------------------- the tick and the clock

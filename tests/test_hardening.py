@@ -57,17 +57,26 @@ def keep_alive(inv, seconds, every=0.2):
 def test_a_servo_that_browns_out_is_set_up_again_and_the_arm_parks(j):
     """Servo j's supply dips while engaged: it comes back with its RAM reset (torque off, limp
     where it sagged). Its next status reading shows Torque Enable 0; the driver writes it up
-    again at once (torque on, holding where it stands), counts it, the heartbeat says
-    servo_reset, and the arm parks from where it now is; engage works again after."""
+    again at once (torque on, LED off, compliance as after power-up, holding where it stands
+    at the park speed, Torque Limit as configured), counts it, the heartbeat says servo_reset, and the arm parks from where it now is; engage works
+    again after."""
     board, inv = engaged()
     servo = board.bus.servo(IDS[j])
     servo.power_off()
     servo.power_on()                                  # RAM back to its power-on values
-    servo._pos = servo._profile = servo.position + 25.0   # and it sagged a little while limp
+    sagged = float(round(servo.position) + 25 | 1)    # a little while limp (an odd unit: every bit)
+    servo._pos = servo._profile = sagged
     assert servo.table[TORQUE_ENABLE] == 0
     t0 = board.time
     assert inv.run_until(lambda: servo.table[TORQUE_ENABLE] == 1, 3 * 3 * TICK) is not None
     print(f"\nservo {j + 1} reset: torque on again {(board.time - t0) * 1e3:.0f} ms later")
+    assert (servo.register("goal_position"), servo.register("moving_speed"), servo.register("led")) \
+        == (sagged, PARK_SPEED, 0)
+    # the AX-12A's power-up compliance (e-manual: margins 1, slopes 32); Torque Limit one below
+    # Max Torque, as enable configures it
+    assert [servo.register(f"{side}_compliance_{what}") for what in ("margin", "slope") for side in ("cw", "ccw")] \
+        == [1, 1, 32, 32]
+    assert servo.register("torque_limit") == 1022
     keep_alive(inv, 0.6)
     hb = board.heartbeats[-1]
     assert hb["servo_resets"] == 1 and hb["faults"] & FAULT["servo_reset"] and hb["engaged"] == 0, hb

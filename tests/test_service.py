@@ -16,7 +16,7 @@ import pytest
 
 from invariants import Invariants
 from simboard_tools import (
-    FAULT, MODEL, PARK_SPEED, PARK_UNITS, BusLog, make_board, ready, shaft_units, sync_goal_speed,
+    FAULT, IDS, MODEL, PARK_SPEED, PARK_UNITS, BusLog, make_board, ready, shaft_units, sync_goal_speed,
 )
 from uavarm.link import messages
 
@@ -76,6 +76,9 @@ def test_torque_off_makes_the_arm_limp_without_a_brown_out_and_still_reads_it():
     board.send("torque", on=0)
     inv.run(0.3)
     assert torque_writes(inv, t0) == [(0xFE, 0)], "one broadcast WRITE of Torque Enable 0"
+    # e-manual framing, written out: broadcast id, length 4, WRITE, address 24, one byte 0,
+    # checksum ~(FE+04+03+18+00) & FF
+    assert [p.raw for p in inv.log.tx if p.start >= t0 and p.inst == 0x03] == [bytes.fromhex("ff ff fe 04 03 18 00 e2")]
     assert all(s.register("torque_enable") == 0 for s in board.bus.servos) and board.servo_power
     assert not inv.log.syncs(t0 + 0.02), "nothing commanded while limp"
     # turned by hand: 40 units on joint 2 (clear of everything), read back in the heartbeat
@@ -129,6 +132,20 @@ def test_service_commands_are_refused_while_the_servos_start():
         board.send(name, **fields)
         after_heartbeat(inv)
         assert refusal(board) == "servos_starting", name
+
+
+def test_a_disable_ends_limp_enabled_again_the_arm_parks():
+    """Torque off, then the servos' supply cut: limp ends with the power, so the next enable
+    sets the servos up with torque on and parks the arm, as any enable does."""
+    board, inv = parked()
+    board.send("torque", on=0)
+    assert inv.run_until(lambda: state(board) == "limp", 1.0) is not None
+    board.send("enable", on=0)
+    inv.run(0.2)
+    t0 = board.time
+    board.send("enable", on=1)
+    assert inv.run_until(lambda: state(board) == "parked", 3.0) is not None
+    assert inv.log.syncs(t0) and all(s.register("torque_enable") == 1 for s in board.bus.servos)
 
 
 def test_engage_while_limp_turns_the_torque_on_and_parks_first():
@@ -253,6 +270,29 @@ def test_the_servo_stream_reports_each_status_read():
     n = len(board.streamed["servo_status"])
     inv.run(0.3)
     assert len(board.streamed["servo_status"]) == n
+
+
+def test_the_servo_stream_carries_each_reply_while_the_arm_moves():
+    """Streaming through a jog of joint 3 by 40 units at the park speed and back: every
+    frame's position, speed and load are those of a status reply its servo sent (the reply's
+    bytes, Present Position at 36, Present Speed at 38, Present Load at 40, little-endian),
+    and the moving joint's frames show its speed, either way (bit 10: the direction)."""
+    board, inv = parked()
+    board.send("stream", imu_every=0, servos=1)
+    t0 = board.time
+    board.send("jog", joint=3, mode=1, value=40.0)
+    inv.run(1.0)
+    board.send("jog", joint=3, mode=1, value=-40.0)
+    inv.run(1.0)
+    replies = set()
+    for r in inv.log.replies:
+        if r.start >= t0 and r.raw[3] == 12 + 2:           # a status reply of registers 32..43
+            p = r.raw[5:-1]
+            replies.add((IDS.index(r.raw[2]), *(int.from_bytes(p[k:k + 2], "little") for k in (4, 6, 8))))
+    frames = board.streamed["servo_status"]
+    assert frames and all((f["servo"], f["position"], f["speed"], f["load"]) in replies for f in frames)
+    moving = [f["speed"] for f in frames if f["servo"] == 2 and f["speed"] != 0]
+    assert sum(s < 1024 for s in moving) >= 5 and sum(s >= 1024 for s in moving) >= 5
 
 
 # ---------------------------------------------------------------- from the command line

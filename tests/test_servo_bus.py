@@ -16,6 +16,7 @@ from simboard_tools import (
     UNIT_RANGE, BusLog, make_board, run_until, run_to_next_heartbeat, ready, running, sdk_rebuild,
     servo_c, sync_goal_speed,
 )
+from test_fault_injection import ReplyTap, with_error
 from uavarm.sim.board import baud_register
 
 # AX-12A e-manual control table
@@ -23,6 +24,7 @@ ADDR = {"return_delay_time": 5, "cw_angle_limit": 6, "temperature_limit": 11, "s
         "shutdown": 18, "torque_enable": 24, "goal_position": 30, "moving_speed": 32, "torque_limit": 34, "present_position": 36,
         "present_temperature": 43}
 OVERLOAD = 0x20
+OVERHEATING_BIT = 2                       # AX-12A status error byte
 RETURN_DELAY = MODEL.servo_return_delay_us // 2
 
 
@@ -105,6 +107,12 @@ def test_power_on_boot_wait_and_configuration():
         assert all(table[a:a + len(d)] == d for a, d in wanted_registers(j))
     # the servos' own verdict: no instruction since the configuration gave an error
     assert all(p.raw[4] == 0 for p in log.replies), [p.raw.hex(" ") for p in log.replies if p.raw[4]]
+    # factory-fresh (Status Return Level 2) they answered every WRITE too, with no parameter:
+    # each reply taken as such, none counted as bad or missing
+    assert any(r.raw[3] == 2 for r in log.replies), "the writes were answered"
+    for j in range(3):
+        s = servo_c(board, j)
+        assert (s.timeouts, s.retries, s.bad_packets, s.error_packets) == (0, 0, 0, 0), j
 
 
 def test_every_packet_is_what_the_official_sdk_builds():
@@ -205,6 +213,8 @@ def test_each_tick_one_sync_write_and_one_round_robin_read():
           f"{MODEL.servo_baud} baud, {bus_us:.0f} us of bus time (worst {worst:.0f} us, "
           f"driver's bound {bound} us) of a {TICK * 1e6:.0f} us tick")
     assert worst <= bound < TICK * 1e6
+    # the driver's count of SYNC_WRITEs (what `make bench` divides by) is the wire's
+    assert board.app.bus.sync_writes == len(log.syncs())
     # every read answered: the driver counts nothing wrong
     for j in range(3):
         s = servo_c(board, j)
@@ -261,6 +271,49 @@ def test_silent_servo_times_out_is_retried_and_recovers(how):
     assert [r for r in log.replies if r.start > t_back and r.raw[2] == id_]
     # the total only grows
     assert hb["servo_timeouts"] >= board.heartbeats[-2]["servo_timeouts"]
+
+
+@pytest.mark.parametrize("how", ["unplugged", "overheating"])
+@pytest.mark.parametrize("j", [0, 2])
+def test_what_a_servo_reported_is_forgotten_with_the_power(j, how):
+    """What the driver knew of a servo's live state goes with the servos' supply: a servo
+    that stopped answering shows servo_timeout, one that reports overheating shows
+    servo_error and its error byte; after disable (power off) the heartbeat no longer
+    claims either, and no servo's reading counts as current."""
+    board, log = enabled_board()
+    board.run(0.05)
+    if how == "unplugged":
+        silence(board, IDS[j], how)
+    else:
+        ReplyTap(board).faults[IDS[j]] = with_error(OVERHEATING_BIT)
+    fault = FAULT["servo_timeout"] if how == "unplugged" else FAULT["servo_error"]
+    hb = run_to_next_heartbeat(board)
+    assert hb["faults"] & fault, hb
+    board.send("enable", on=0)
+    hb = run_to_next_heartbeat(board)
+    assert hb["enabled"] == 0 and not hb["faults"] & fault and hb[f"servo{j + 1}_error"] == 0, hb
+    assert not any(servo_c(board, k).status_valid or servo_c(board, k).failed for k in range(3))
+
+
+def test_a_command_queued_when_the_power_is_cut_is_not_sent_when_it_returns():
+    """The driver holds a command (goals and speeds) at the moment the servos' supply is
+    cut: after the power comes back and the servos are set up again, those stale goals are
+    never sent (the arm may have been moved by hand meanwhile); the first goals come from
+    where it now stands."""
+    board, log = enabled_board()
+    board.run(0.1)
+    bus = board.ffi.addressof(board.app, "bus")
+    stale = [round(PARK_UNITS[0]) + 100, round(PARK_UNITS[1]), round(PARK_UNITS[2])]
+    board.lib.sbus_command(bus, stale, [PARK_SPEED] * 3)
+    board.lib.sbus_power(bus, False)
+    board.send("enable", on=0)
+    board.run(0.1)
+    t_on = board.time
+    board.send("enable", on=1)
+    assert run_until(board, lambda: log.syncs(t_on), 1.0) is not None
+    board.run(0.1)
+    goals = [sync_goal_speed(p.raw)[0] for p in log.syncs(t_on)]
+    assert stale not in goals and goals[0] == [round(u) for u in PARK_UNITS]
 
 
 def test_servo_silent_during_configuration_cuts_power_and_latches():
