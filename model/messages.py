@@ -63,6 +63,9 @@ MESSAGES = (
     Message("stream", 0x16, "to_arm", (("imu_every", "u8"), ("servos", "u8")),
             "service (not engaged; engage stops it): imu_raw every imu_every ticks (0 off), "
             "servo_status after every status read (servos 1) or not (0)"),
+    Message("ping", 0x17, "to_arm", (("seq", "u16"), ("stamp_us", "u32")),
+            "answered at once, in any state, with pong (seq and stamp_us given back): the round trip "
+            "and the board's time of arrival measure the link's delay (`uavarm calibrate link`)"),
     Message("heartbeat", 0x20, "to_drone", (
         ("seq", "u16"), ("uptime_ms", "u32"),
         ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"), ("state", "u8"), ("refusal", "u8"),
@@ -91,6 +94,9 @@ MESSAGES = (
         ("goal", "u16"), ("position", "u16"), ("speed", "u16"), ("load", "u16"),
     ), "when streamed: one servo's status read (servo 0-2; AX-12A units: the goal last sent, "
        "present position, speed and load), with the board's microsecond time of the reply"),
+    Message("pong", 0x23, "to_drone", (("seq", "u16"), ("stamp_us", "u32"), ("arrived_us", "u32")),
+            "the answer to ping: its seq and stamp_us, and the board's microsecond time when it "
+            "arrived (the clock drone_attitude arrivals are timed in)"),
 )
 
 # heartbeat.refusal: why the last refused command was refused

@@ -195,16 +195,20 @@ def parser() -> argparse.ArgumentParser:
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
     cal = sub.add_parser("calibrate", help="guided calibration over the link, written into the model file")
-    cal.add_argument("what", choices=["imu", "mounting", "servos", "lag"],
+    cal.add_argument("what", choices=["imu", "mounting", "servos", "lag", "link"],
                      help="imu: accelerometer bias and scale (six still positions) and the gyro's offset; "
                           "mounting: the IMU's roll and pitch on the base (drone standing level); servos: "
                           "each servo's zero and direction (the arm held at its zero pose, then small jogs); "
-                          "lag: how far the servos lag their goal (a jog of each joint), and the lead time")
+                          "lag: how far the servos lag their goal (a jog of each joint), and the lead time; "
+                          "link: the link's fixed delay from this computer (pings), run on the drone's computer")
     cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")
     cal.add_argument("--model", default=None, help="model file to update (default: model/manipulator.toml)")
     cal.add_argument("--seconds", type=POSITIVE, default=None,
-                     help="seconds of samples per position, or after each jog for lag (default: imu 2, "
-                          "mounting 3, servos 1, lag 0.4)")
+                     help="seconds of samples per position, after each jog for lag, of pings for link "
+                          "(default: imu 2, mounting 3, servos 1, lag 0.4, link 5)")
+    cal.add_argument("--upstream-ms", type=NOT_NEGATIVE, default=None, metavar="MS",
+                     help="link: how old the attitude's stamps are when they reach this computer, added to "
+                          "what is measured (e.g. the mean of `rostopic delay` on the attitude topic; default 0)")
     cal.add_argument("--yes", action="store_true", help="write the result without asking")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
     st.add_argument("scenario", nargs="?", default="level",
@@ -220,6 +224,9 @@ def parser() -> argparse.ArgumentParser:
                          "(default: as the model file says)")
     st.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=0.0, metavar="MS",
                     help="how far the simulated servos' shafts lag their speed-limited motion (first order; "
+                         "default: %(default)s)")
+    st.add_argument("--link-delay-ms", default="0", metavar="UP[,DOWN]",
+                    help="the link's delay to the board and back from it (ms; DOWN as UP if left out; "
                          "default: %(default)s)")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
     sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/sim/scenarios.py)")
@@ -282,6 +289,7 @@ def main(argv=None) -> int:
         try:
             sitl.motion_of(args.scenario)
             args.imu_mounting = sitl.angles_of(args.imu_mounting) if args.imu_mounting else None
+            args.link_delay = sitl.link_delay_of(args.link_delay_ms)
         except ValueError as exc:
             ap.error(str(exc))
     try:
@@ -319,7 +327,7 @@ def run(args) -> int:
         from .sim import sitl
         _require_current_code()
         return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting,
-                         servo_lag=args.servo_lag_ms / 1000)
+                         servo_lag=args.servo_lag_ms / 1000, link_delay=args.link_delay)
     return demo(args)
 
 

@@ -15,6 +15,12 @@ Servo lag: the shaft as a first-order lag with dead time behind its goal, x' = (
 jog); the goal between readings taken as linear (the firmware moves it a step per tick).
 Following a ramp the shaft lags by dead + tau, which the lead time must cover (how that
 splits into the two, only the ramp's end shows, and with readings 30 ms apart poorly).
+
+Link delay: pings sent from this computer and answered at once by the board; the quickest
+round trip is the link's fixed delay there and back, half of it each way if the two ways
+are alike (the error is half their difference: USB full speed polls every millisecond both
+ways). The board's arrival times, against the send times, give the one-way delay's spread
+above that minimum (the clocks' offset cancels in the differences).
 """
 from __future__ import annotations
 
@@ -189,3 +195,35 @@ def fit_servo_lag(records: list[tuple[np.ndarray, np.ndarray, np.ndarray]], join
         raise CalibrationError(f"joint {joint}'s servo lags more than {LAG_GRID_S[-1] * 1000:.0f} ms: too slow to "
                                "stabilise anything (supply voltage? compliance settings?)")
     return fit
+
+
+PING_ANSWERED_MIN = 0.9            # share of pings answered for a usable measurement
+
+
+@dataclass(frozen=True)
+class LinkDelay:
+    one_way: float                 # s: half the quickest round trip
+    round_trip_min: float          # s
+    spread_p50: float              # s: the one-way delay's excess over its quickest, median
+    spread_p95: float              # s: and 95th percentile
+    answered: int
+    sent: int
+
+
+def fit_link_delay(exchanges: list[tuple[float, float, int]], sent: int) -> LinkDelay:
+    """exchanges: (sent s, received s) on this computer's clock and the board's arrival time
+    (us, its 32-bit clock) of each answered ping, in the order sent; `sent` pings in all."""
+    if sent == 0 or len(exchanges) < PING_ANSWERED_MIN * sent:
+        raise CalibrationError(f"{sent - len(exchanges)} of {sent} pings unanswered: the link drops frames, or "
+                               "the board's firmware is older than the ping message (flash this one)")
+    t_sent = np.array([e[0] for e in exchanges])
+    t_back = np.array([e[1] for e in exchanges])
+    arrived = np.array([e[2] for e in exchanges], dtype=np.int64)
+    board = np.concatenate([[0], np.cumsum(np.diff(arrived) % 2**32)]) * 1e-6   # unwrapped, s
+    trip = t_back - t_sent
+    one_way = board - (t_sent - t_sent[0])        # the one-way delay plus an unknown constant
+    excess = one_way - one_way.min()
+    return LinkDelay(one_way=float(trip.min()) / 2, round_trip_min=float(trip.min()),
+                     spread_p50=float(np.percentile(excess, 50)), spread_p95=float(np.percentile(excess, 95)),
+                     answered=len(exchanges), sent=sent)
+

@@ -1,5 +1,5 @@
-"""`uavarm calibrate imu|mounting|servos|lag PORT`: guided calibrations over the link, written
-into the model file. Each step says what to do, waits for Enter, takes the streamed samples
+"""`uavarm calibrate imu|mounting|servos|lag|link PORT`: guided calibrations over the link,
+written into the model file. Each step says what to do, waits for Enter, takes the streamed samples
 (raw IMU, or servo positions), checks them, and says what it measured; a result that is
 implausible or noisy is refused with the reason and the model file is left as it was.
 
@@ -8,6 +8,7 @@ The procedures take `ask(text)` (wait for the user; the terminal's Enter) and
 as a user does on the bench."""
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -208,6 +209,59 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S) -> b
                                          "estimator.lead_time": round(lead, 4)}, confirm)
 
 
+LINK_SECONDS = 5.0
+PING_RATE_HZ = 50.0
+
+
+def _round_trips(arm, seconds: float, wait: float) -> tuple[list[tuple[float, float, int]], int]:
+    """Pings at PING_RATE_HZ for `seconds`, then `wait` s for the last answers: (sent,
+    received, board's arrival us) of each answered one, in the order sent, and how many were
+    sent."""
+    arm.poll()
+    arm.pongs.clear()
+    sent = []
+    for k in range(max(1, round(seconds * PING_RATE_HZ))):
+        sent.append(arm.ping(k))
+        while time.monotonic() < sent[-1] + 1.0 / PING_RATE_HZ:
+            arm.poll()
+            time.sleep(0.0005)
+    end = time.monotonic() + wait
+    while time.monotonic() < end:
+        arm.poll()
+        time.sleep(0.0005)
+    back = {}
+    for pong, received in arm.pongs:
+        k = pong["seq"]
+        if k < len(sent) and pong["stamp_us"] == int(sent[k] * 1e6) & 0xFFFFFFFF:
+            back[k] = (sent[k], received, pong["arrived_us"])
+    return [back[k] for k in sorted(back)], len(sent)
+
+
+def link(arm, model_path: Path, ask, confirm, seconds: float = LINK_SECONDS, upstream_ms: float = 0.0) -> bool:
+    """The link's fixed delay from this computer to the board (half the quickest round trip
+    of pings the board answers at once), plus `upstream_ms` (how old the attitude's stamps
+    already are when they reach this computer): estimator.link_delay_min."""
+    model = config.load(model_path)
+    arm.next_heartbeat()
+    ask(f"The link's delay will be measured for {seconds:g} s ({PING_RATE_HZ:.0f} pings a second); "
+        "the arm may be in any state. Press Enter.")
+    # long enough for the answers of any link the estimator could use
+    exchanges, sent = _round_trips(arm, seconds, wait=2 * model.estimator.link_delay_max + 0.1)
+    d = fit.fit_link_delay(exchanges, sent)
+    delay = d.one_way + upstream_ms / 1000.0
+    print(f"{d.answered} of {d.sent} pings answered; quickest round trip {d.round_trip_min * 1000:.1f} ms, so "
+          f"{d.one_way * 1000:.1f} ms each way; one-way spread above it {d.spread_p50 * 1000:.1f} ms median, "
+          f"{d.spread_p95 * 1000:.1f} ms at 95 %")
+    if upstream_ms:
+        print(f"plus {upstream_ms:g} ms before the stamps reach this computer: {delay * 1000:.1f} ms")
+    if delay >= model.estimator.link_delay_max:
+        raise CalibrationError(f"a link delay of {delay * 1000:.1f} ms is not below estimator.link_delay_max "
+                               f"({model.estimator.link_delay_max * 1000:.0f} ms): every drone_attitude would be "
+                               "refused as too old; is this the drone's computer, on the board's USB port?")
+    print(f"estimator.link_delay_min {delay * 1000:.1f} ms (was {model.estimator.link_delay_min * 1000:.1f})")
+    return model_edit.write(model_path, {"estimator.link_delay_min": round(delay, 4)}, confirm)
+
+
 def terminal_ask(text: str) -> None:
     input(text + " ")
 
@@ -221,12 +275,18 @@ def command(args) -> int:
     from ..link import ArmLink, LinkError
     path = Path(args.model) if args.model else config.DEFAULT_MODEL
     confirm = (lambda q: True) if args.yes else terminal_confirm
+    if args.upstream_ms is not None and args.what != "link":
+        print(f"error: --upstream-ms is for `uavarm calibrate link` only, not {args.what}", file=sys.stderr)
+        return 2
     try:
         config.load(path)
         with ArmLink(args.port) as arm:
             arm.next_heartbeat()
-            run = {"imu": imu, "mounting": mounting, "servos": servos, "lag": lag}[args.what]
-            run(arm, path, terminal_ask, confirm, **({} if args.seconds is None else {"seconds": args.seconds}))
+            run = {"imu": imu, "mounting": mounting, "servos": servos, "lag": lag, "link": link}[args.what]
+            options = {} if args.seconds is None else {"seconds": args.seconds}
+            if args.upstream_ms is not None:
+                options["upstream_ms"] = args.upstream_ms
+            run(arm, path, terminal_ask, confirm, **options)
     except (LinkError, CalibrationError, config.ModelError, OSError) as exc:   # OSError: the port failed
         print(f"error: {exc}", file=sys.stderr)
         print(f"{path}: left as it was", file=sys.stderr)

@@ -143,6 +143,7 @@ class ArmLink:
         self.decoder = llcp.Decoder(gap=0.1, expected_len=_expected_len)
         self.heartbeats: deque[dict] = deque(maxlen=100)
         self.streamed: dict[str, deque] = {"imu_raw": deque(maxlen=10_000), "servo_status": deque(maxlen=10_000)}
+        self.pongs: deque[tuple[dict, float]] = deque(maxlen=10_000)   # (pong, time.monotonic() read)
         self.bytes_received = 0
         self._attitude_seq = 0
 
@@ -174,6 +175,8 @@ class ArmLink:
                 batch.append(fields)
             elif name in self.streamed:
                 self.streamed[name].append(fields)
+            elif name == "pong":
+                self.pongs.append((fields, now))
         new = self.age.fresh(batch, now)
         self.heartbeats.extend(new)
         return new
@@ -310,6 +313,13 @@ class ArmLink:
         stamp = int(time.monotonic() * 1e6) if stamp_us is None else stamp_us
         self.send("drone_attitude", seq=self._attitude_seq, stamp_us=stamp & 0xFFFFFFFF, roll=roll, pitch=pitch)
         self._attitude_seq = (self._attitude_seq + 1) & 0xFFFF
+
+    def ping(self, seq: int) -> float:
+        """Send ping `seq` (stamped with this computer's microsecond clock); the time.monotonic()
+        it left at. The board's pong lands in self.pongs."""
+        sent = time.monotonic()
+        self.send("ping", seq=seq & 0xFFFF, stamp_us=int(sent * 1e6) & 0xFFFFFFFF)
+        return sent
 
     def keep_alive(self) -> None:
         """Repeat the board's current set position, so an engaged arm does not park."""

@@ -154,7 +154,7 @@ class SimBoard:
         self._link = llcp.Decoder(expected_len=lambda i: messages.BY_ID[i].size if i in messages.BY_ID else -1)
         self.heartbeats: list[dict] = []
         self.heartbeat_times: list[float] = []
-        self.streamed: dict[str, list[dict]] = {"imu_raw": [], "servo_status": []}   # service streams
+        self.streamed: dict[str, list[dict]] = {"imu_raw": [], "servo_status": [], "pong": []}   # service streams, pongs
         self.servo_tx = bytearray()           # every byte the board put on the servo bus
         self.servo_rx_bytes = 0               # bytes the servos sent back
         self.commands: list[SyncCommand] = []

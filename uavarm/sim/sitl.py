@@ -15,6 +15,7 @@ import os
 import threading
 import time
 import tty
+from collections import deque
 
 from .board import Gravity, Rocking, SimBoard
 from .imu_model import Mpu6050Sensor
@@ -48,11 +49,18 @@ class Sitl:
     """The board and its pseudo-terminal. `device` is the path to open; `run()` serves it until
     `stop()` (from another thread) or Ctrl-C."""
 
-    def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None, **board_options):
-        """board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag: the hardware as it is)."""
+    def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None,
+                 link_delay: tuple[float, float] = (0.0, 0.0), **board_options):
+        """link_delay: seconds (simulated) the link's bytes take to the board and back from it;
+        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag: the hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
+        if not all(0 <= d <= 1 for d in link_delay):
+            raise ValueError(f"link delay must be 0 to 1000 ms each way, got {link_delay}")
         self.speed = speed
+        self._delay_us = [round(d * 1e6) for d in link_delay]
+        self._inbound: deque[tuple[int, bytes]] = deque()    # (due board us, bytes) on their way in
+        self._outbound: deque[tuple[int, bytes]] = deque()   # and out
         self.board = SimBoard(model, motion=motion_of(scenario), record=False, **board_options)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)          # bytes pass unchanged: no echo, no line editing
@@ -70,7 +78,7 @@ class Sitl:
             except OSError:
                 pass
 
-    def _read_input(self) -> None:
+    def _read_input(self, now_us: int) -> None:
         while True:
             try:
                 data = os.read(self._master, 4096)
@@ -78,26 +86,41 @@ class Sitl:
                 return
             if not data:
                 return
-            self.board.send_bytes(data)
+            # (no delay: at once, even if the board is behind the time it should be at)
+            self._inbound.append((now_us + self._delay_us[0] if self._delay_us[0] else 0, data))
 
-    def _write_output(self) -> None:
+    def _run_until_us(self, end_us: int) -> None:
+        """The board run to end_us, the input handed to it as each piece's delay ends."""
+        while self._inbound and self._inbound[0][0] <= end_us:
+            due, data = self._inbound.popleft()
+            self.board.run_until_us(max(due, self.board.now_us))
+            self.board.send_bytes(data)
+        self.board.run_until_us(end_us)
+
+    def _write_output(self, now_us: int) -> None:
         out = self.board.take_link_output()
-        while out:
-            try:
-                n = os.write(self._master, out)
-            except BlockingIOError:
-                return      # nobody is reading: heartbeats are dropped, as a full USB queue would
-            out = out[n:]
+        if out:
+            self._outbound.append((self.board.now_us + self._delay_us[1], out))
+        while self._outbound and self._outbound[0][0] <= now_us:
+            out = self._outbound.popleft()[1]
+            while out:
+                try:
+                    n = os.write(self._master, out)
+                except BlockingIOError:
+                    break   # nobody is reading: dropped, as a full USB queue would
+                out = out[n:]
 
     def run(self) -> None:
+        """The link's delays count in the time the board should be at (real time times the
+        speed), so a board that falls behind for a moment does not shorten them."""
         start = time.monotonic()
         try:
             while not self._stop.is_set():
-                self._read_input()
                 target_us = round((time.monotonic() - start) * self.speed * 1e6)
+                self._read_input(target_us)
                 end_us = min(target_us, self.board.now_us + round(SLICE_S * 1e6))
-                self.board.run_until_us(end_us)
-                self._write_output()
+                self._run_until_us(end_us)
+                self._write_output(round((time.monotonic() - start) * self.speed * 1e6))
                 if self.board.now_us >= target_us:
                     time.sleep(0.0005)
         finally:
@@ -115,12 +138,25 @@ def angles_of(text: str) -> tuple[float, float, float]:
     return values
 
 
+def link_delay_of(text: str) -> tuple[float, float]:
+    """UP[,DOWN] in milliseconds (DOWN: as UP) -> seconds each way."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+        if len(values) not in (1, 2) or not all(0 <= v <= 1000 for v in values):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"link delay {text!r}: use UP[,DOWN] in milliseconds, each 0 to 1000") from None
+    return values[0] / 1000, values[-1] / 1000
+
+
 def main(scenario: str | None, speed: float, imu: str = "white", seed: int = 0,
-         imu_mounting: tuple[float, float, float] | None = None, servo_lag: float = 0.0) -> int:
+         imu_mounting: tuple[float, float, float] | None = None, servo_lag: float = 0.0,
+         link_delay: tuple[float, float] = (0.0, 0.0)) -> int:
     sitl = Sitl(scenario, speed=speed, sensor=Mpu6050Sensor(imu, seed=seed), imu_mounting_rpy_deg=imu_mounting,
-                servo_lag=servo_lag)
+                servo_lag=servo_lag, link_delay=link_delay)
     print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x, IMU {imu} "
-          f"seed {seed}, servo lag {servo_lag * 1000:g} ms); Ctrl-C stops", flush=True)
+          f"seed {seed}, servo lag {servo_lag * 1000:g} ms, link delay {link_delay[0] * 1000:g} ms in, "
+          f"{link_delay[1] * 1000:g} ms out); Ctrl-C stops", flush=True)
     try:
         sitl.run()
     except KeyboardInterrupt:

@@ -287,6 +287,17 @@ static void on_engage(app_t *app, bool on)
     app->stream_servos = false;
 }
 
+static bool send_payload(app_t *app, const uint8_t *payload, size_t len);
+
+/* At once, whatever the state: the round trip is the measurement (a pong the link cannot
+ * take is lost, as a ping can be). */
+static void send_pong(app_t *app, const msg_ping_t *ping)
+{
+    const msg_pong_t pong = { .seq = ping->seq, .stamp_us = ping->stamp_us, .arrived_us = now_us(app) };
+    uint8_t payload[MSG_PONG_SIZE];
+    (void)send_payload(app, payload, msg_pong_pack(&pong, payload, sizeof payload));
+}
+
 static void on_frame(app_t *app, const uint8_t *payload, size_t len)
 {
     msg_enable_t enable;
@@ -296,6 +307,7 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     msg_jog_t jog;
     msg_torque_t torque;
     msg_stream_t stream;
+    msg_ping_t ping;
     if (len > 0 && payload[0] == MSG_HEARTBEAT_ID) {
         app->link_echoes++;   /* the board's own output come back: not the drone, not life */
         return;
@@ -317,6 +329,8 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         on_torque(app, torque.on != 0);
     } else if (msg_stream_unpack(payload, len, &stream)) {
         on_stream(app, &stream);
+    } else if (msg_ping_unpack(payload, len, &ping)) {
+        send_pong(app, &ping);
     } else {
         app->commands_ignored++;
         return;
