@@ -417,7 +417,9 @@ def fastmath_context():
 
 
 URDF = "uavarm_arm.urdf"
-ROS_URDF_DIR = ROOT / "ros" / "uavarm_ros" / "urdf"
+MESSAGE_TABLE = "message_table.py"
+# the ROS package carries these too, so it builds and runs in any catkin workspace
+ROS_COPIES = {URDF: Path("ros/uavarm_ros/urdf"), MESSAGE_TABLE: Path("ros/uavarm_ros/src/uavarm_link")}
 
 OUTPUTS = {
     "fastmath.h": "fastmath.h.j2",
@@ -434,6 +436,7 @@ OUTPUTS = {
     "messages.h": "messages.h.j2",
     "messages.c": "messages.c.j2",
     URDF: "arm.urdf.j2",
+    MESSAGE_TABLE: "message_table.py.j2",
 }
 
 
@@ -469,6 +472,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "refusals": messages.REFUSALS,
         "reset_causes": messages.RESET_CAUSES,
         "types": messages.TYPES,
+        "tx_max_payload": messages.TX_MAX_PAYLOAD,
         "wire_types": messages.wire_types(),
     }
     return {name: env.get_template(tpl).render(ctx, file_name=name) for name, tpl in OUTPUTS.items()}
@@ -527,10 +531,10 @@ def main(argv=None, prog: str = "python -m uavarm.codegen") -> int:
     except config.ModelError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    # the ROS package carries the URDF too, so its launch file finds it in any catkin workspace
-    ros_files = {URDF: files[URDF]} if default_out else {}
+    copies = ROS_COPIES if default_out else {}
     if args.check:
-        d = diff(files, args.out) + (diff(board_files, board) if board else "") + diff(ros_files, ROS_URDF_DIR)
+        d = diff(files, args.out) + (diff(board_files, board) if board else "")
+        d += "".join(diff({name: files[name]}, ROOT / folder) for name, folder in copies.items())
         if d:
             sys.stdout.write(d)
             print(f"\n{args.out} is stale: run `{REGENERATE}`", file=sys.stderr)
@@ -538,6 +542,10 @@ def main(argv=None, prog: str = "python -m uavarm.codegen") -> int:
         print(f"{args.out} is up to date")
         return 0
     changed = write(files, args.out) + (board_ioc.write(board_files, board) if board else [])
-    changed += [f"ros/uavarm_ros/urdf/{name}" for name in write(ros_files, ROS_URDF_DIR)] if ros_files else []
+    for name, folder in copies.items():
+        path = ROOT / folder / name
+        if not path.exists() or path.read_text() != files[name]:
+            path.write_text(files[name])
+            changed.append(str(folder / name))
     print(f"{args.out}: {len(files)} files, {len(changed)} changed" + (f" ({', '.join(changed)})" if changed else ""))
     return 0

@@ -1,18 +1,29 @@
 """The ROS package as catkin builds it: ros/uavarm_ros copied into a fresh catkin workspace,
 `catkin_make` with Debian's catkin and the system Python (as on the robot, no virtualenv),
-its messages and services generated for Python and C++, and catkin_lint clean.
+its messages and services generated for Python and C++, catkin_lint clean; then the arm
+brought up from that workspace alone (`roslaunch uavarm_ros arm.launch` on a SITL's port, the
+system Python without the toolchain): joint states, TF, services. The node's code is Python
+3.8 (Noetic's) by vermin's reading, and runs under a 3.8 interpreter where one is installed.
 
-Oracles: catkin's own build and generators, roslib's message loading, and the genpy classes
-the node builds at run time (same definition, same MD5)."""
+Oracles: catkin's own build and generators, roslib's message loading, the genpy classes
+the node builds at run time (same definition, same MD5), ROS's own tools (rostopic,
+rosservice, tf2), vermin."""
 from __future__ import annotations
 
 import os
 import shutil
+import signal
+import socket
 import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
 
 import pytest
 
 from conftest import ROOT, require_catkin
+from uavarm.sim.sitl import Sitl
 
 PACKAGE = ROOT / "ros" / "uavarm_ros"
 CLEAN_ENV = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
@@ -27,11 +38,6 @@ def workspace(tmp_path_factory):
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     return ws
-
-
-def in_workspace(ws, command: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["bash", "-c", f"source devel/setup.bash && {command}"], cwd=ws, env=CLEAN_ENV,
-                          capture_output=True, text=True, timeout=120)
 
 
 def test_catkin_builds_the_messages_and_services_for_python_and_cpp(workspace):
@@ -56,3 +62,104 @@ def test_catkin_lint_finds_nothing(workspace):
     out = subprocess.run(["catkin_lint", "-W2", "--strict", str(workspace / "src" / "uavarm_ros")], env=CLEAN_ENV,
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "found 0 problems" in out.stdout + out.stderr, out.stdout + out.stderr
+
+
+def free_port() -> int:
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        return sock.getsockname()[1]
+
+
+def stop_group(proc: subprocess.Popen) -> None:
+    if proc.poll() is None:
+        try:
+            os.killpg(proc.pid, signal.SIGINT)
+            proc.wait(timeout=15)
+        except (ProcessLookupError, subprocess.TimeoutExpired):
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+
+
+@pytest.fixture(scope="module")
+def launched(workspace, tmp_path_factory):
+    """roscore, a SITL (this process) and `roslaunch uavarm_ros arm.launch` from the workspace:
+    (workspace, environment for ROS tools there)."""
+    home = tmp_path_factory.mktemp("ros_home")
+    env = dict(CLEAN_ENV, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOME=str(home),
+               ROS_LOG_DIR=str(home / "log"), ROS_IP="127.0.0.1", PYTHONUNBUFFERED="1")
+    sitl = Sitl(speed=1.0)
+    threading.Thread(target=sitl.run, daemon=True).start()
+    port = env["ROS_MASTER_URI"].rsplit(":", 1)[1]
+    procs = []
+    try:
+        for command, log in ((f"roscore -p {port}", "roscore.out"),
+                             (f"roslaunch uavarm_ros arm.launch port:={sitl.device} uav_name:=uav1", "launch.out")):
+            procs.append(subprocess.Popen(["bash", "-c", f"source devel/setup.bash && exec {command}"], cwd=workspace,
+                                          env=env, start_new_session=True, stdout=open(home / log, "w"),
+                                          stderr=subprocess.STDOUT))
+            time.sleep(2.0)
+        out = in_workspace(workspace, "rosservice list", env, wait_for="/uav1/arm/enable", home=home)
+        assert "/uav1/arm/enable" in out.stdout, (home / "launch.out").read_text()[-3000:]
+        yield workspace, env, home
+    finally:
+        for proc in reversed(procs):
+            stop_group(proc)
+        sitl.stop()
+
+
+def in_workspace(ws, command: str, env=None, wait_for: str | None = None, home=None) -> subprocess.CompletedProcess:
+    """`command` in the workspace's environment; with wait_for, repeated (up to 60 s) until
+    its output shows that text."""
+    end = time.monotonic() + 60
+    while True:
+        out = subprocess.run(["bash", "-c", f"source devel/setup.bash && {command}"], cwd=ws, env=env or CLEAN_ENV,
+                             capture_output=True, text=True, timeout=120)
+        if wait_for is None or wait_for in out.stdout or time.monotonic() > end:
+            return out
+        time.sleep(1.0)
+
+
+def test_the_workspace_alone_brings_the_arm_up(launched):
+    """From the built workspace and the system Python (no toolchain: `import uavarm` fails
+    there): joint states with the URDF's joint names, the end effector in TF below the drone's
+    body frame (MRS's uav1/fcu, the launch file's default parent), and the services answering
+    (enable taken)."""
+    ws, env, home = launched
+    log = lambda: (home / "launch.out").read_text()[-3000:]          # noqa: E731
+    out = in_workspace(ws, "/usr/bin/python3 -c 'import uavarm'", env)
+    assert out.returncode != 0 and "No module named 'uavarm'" in out.stderr
+    out = in_workspace(ws, "rostopic echo -n 1 /uav1/joint_states", env, wait_for="arm_joint1")
+    assert all(f"arm_joint{j}" in out.stdout for j in (1, 2, 3)), out.stdout + out.stderr + log()
+    out = in_workspace(ws, "rosservice call /uav1/arm/enable true", env)
+    assert "success: True" in out.stdout, out.stdout + out.stderr + log()
+    tf = ("import rospy, tf2_ros; rospy.init_node('tf_check', anonymous=True); b = tf2_ros.Buffer(); "
+          "tf2_ros.TransformListener(b); t = b.lookup_transform('uav1/fcu', 'end_effector', rospy.Time(0), "
+          "rospy.Duration(20)).transform.translation; print('EE', t.x, t.y, t.z)")
+    out = in_workspace(ws, f'/usr/bin/python3 -c "{tf}"', env)
+    assert out.returncode == 0 and out.stdout.startswith("EE"), out.stdout + out.stderr + log()
+    x, y, z = map(float, out.stdout.split()[1:4])
+    assert z < -0.05 and (x * x + y * y) ** 0.5 < 0.3, (x, y, z)     # below the drone, within the arm's reach
+
+
+LINK_PACKAGE = ROOT / "ros" / "uavarm_ros" / "src" / "uavarm_link"
+
+
+def test_the_node_is_python_3_8():
+    """vermin: no syntax, module or call newer than 3.8 in the node's package; and, where a 3.8
+    interpreter is installed, the codec and the framing round-trip a heartbeat under it."""
+    vermin = "import sys; from vermin import main; sys.exit(main())"
+    out = subprocess.run([sys.executable, "-c", vermin, "-t=3.8-", "--no-tips", "--violations", str(LINK_PACKAGE)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    found = sorted(Path("/root/.pyenv/versions").glob("3.8.*/bin/python")) + sorted(Path("/usr/bin").glob("python3.8"))
+    python38 = found[0] if found else None
+    if python38 is None:
+        return
+    check = ("import sys; sys.path.insert(0, sys.argv[1]); from uavarm_link import llcp, messages; "
+             "p = messages.encode('ping', seq=7, stamp_us=9); f = llcp.encode(p); "
+             "d = llcp.Decoder(gap=0.1, expected_len=lambda i: messages.BY_ID[i].size); "
+             "assert [messages.decode(x) for x in d.feed(f, 0.0)] == [('ping', {'seq': 7, 'stamp_us': 9})]; "
+             "print(sys.version_info[:2])")
+    out = subprocess.run([str(python38), "-c", check, str(LINK_PACKAGE.parent)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0 and "(3, 8)" in out.stdout, out.stdout + out.stderr
+

@@ -3,16 +3,18 @@ below it, so the folder tree can be read as the dependency graph (README, "Layou
 from __future__ import annotations
 
 import ast
+import importlib
 from pathlib import Path
 
 import uavarm
 
 PACKAGE = Path(uavarm.__file__).parent
-# what each subpackage may import from uavarm besides itself (model and codegen are the base)
+# what each subpackage may import from uavarm besides itself (model and codegen are the base;
+# link is the ROS package's, which runs on the robot without the rest)
 ALLOWED = {
     "m4": set(),
     "build": {"model", "codegen", "toml_text"},
-    "link": {"model"},
+    "link": set(),
     "sim": {"model", "build", "link", "toml_text"},
     "calibrate": {"model", "link"},
 }
@@ -46,7 +48,9 @@ def uavarm_imports(path: Path, package: str) -> set[str]:
 def test_each_subpackage_imports_only_the_layers_below_it():
     wrong = []
     for package, allowed in ALLOWED.items():
-        for path in sorted((PACKAGE / package).glob("*.py")):
+        folder = Path(list(importlib.import_module(f"uavarm.{package}").__path__)[0])
+        assert list(folder.glob("*.py")), folder
+        for path in sorted(folder.glob("*.py")):
             used = uavarm_imports(path, package) - {package}
             for name in sorted(used - allowed):
                 wrong.append(f"uavarm/{package}/{path.name} imports uavarm.{name}")

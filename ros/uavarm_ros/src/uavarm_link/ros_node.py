@@ -1,4 +1,4 @@
-"""ROS 1 node for the arm board: `ros/uavarm_ros/launch/arm.launch` starts it.
+"""ROS 1 node for the arm board: `launch/arm.launch` of the uavarm_ros package starts it.
 
 Interface (private names, under the node: /<uav_name>/arm/...):
 
@@ -22,16 +22,20 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   engaged arm is kept alive by repeating its set position every `~keep_alive_period` s.
 
 Parameters: `~port` (/dev/ttyACM0), `~baud` (115200), the attitude ones above,
-`~keep_alive` (true), `~keep_alive_period` (0.2 s; the board parks after 1 s of silence).
+`~keep_alive` (true), `~keep_alive_period` (0.2 s; the board parks after 1 s of silence),
+`~parent_frame` (none: the drone's body frame, published as the same place as the URDF's
+root `uav_frame`, so the arm hangs in the drone's TF tree).
 
 One thread reads the port: the main loop polls heartbeats, publishes them and sends the
 attitude or keep-alive frames. Service threads send their command and wait for the loop to
 deliver the heartbeats that confirm it; every read and write goes through one lock. The port
 is reopened every second after an error (a board unplugged, a SITL stopped).
 
-msg/ and srv/ of the ROS package are turned into Python by Debian's genpy at start-up (and by
-the tests) into build/ros, never committed. This module imports rospy only inside functions,
-so the rest of uavarm works without ROS.
+In a catkin workspace the node takes catkin's message classes and needs nothing but rospy,
+the ROS message packages and pyserial (Python 3.8, Noetic's, and later). Run from the source
+folder (the toolchain's tests), Debian's genpy turns msg/ and srv/ into Python in build/ros,
+never committed. This module imports rospy only inside functions, so the link works without
+ROS.
 """
 from __future__ import annotations
 
@@ -52,13 +56,14 @@ from .shared import SharedLink
 from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
 
 PACKAGE = "uavarm_ros"
-ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_PACKAGE_DIR = ROOT / "ros" / PACKAGE
+# the ROS package's folder (this file is its src/uavarm_link/ros_node.py): msg/ and srv/
+DEFAULT_PACKAGE_DIR = Path(__file__).resolve().parents[2]
 DEBIAN_DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
 # std_msgs/Header.msg and its siblings (Debian's ros-std-msgs): ArmStatus has a Header
 STD_MSGS_DEFINITIONS = Path("/usr/share/std_msgs/msg")
-# the frame of ArmStatus: the URDF's link at the arm's base
+# the frame of ArmStatus: the URDF's link at the arm's base; and the URDF's root
 STATUS_FRAME = "arm_base"
+URDF_ROOT = "uav_frame"
 DEFAULT_ATTITUDE_TOPIC = "estimation_manager/odom_main"
 FAULT_TEXT = dict(FAULTS)
 
@@ -226,6 +231,7 @@ class ArmNode:
         from sensor_msgs.msg import JointState
         self.joint_pub = rospy.Publisher("joint_states", JointState, queue_size=10)   # robot_state_publisher's
         self._joint_state = JointState
+        self._attach(rospy.get_param("~parent_frame", ""))
         rospy.Subscriber(topic, att_class, self._on_attitude, queue_size=1)
         self._open(time.monotonic())
         rospy.Service("~enable", SetBool, self._on_enable)
@@ -234,6 +240,20 @@ class ArmNode:
         rospy.loginfo("arm: board on %s, attitude from %s (%s) at %.0f Hz, keep-alive %s",
                       self.port, rospy.resolve_name(topic), att_type, self.attitude_rate,
                       "on" if self.keep_alive else "off")
+
+    def _attach(self, parent: str) -> None:
+        """The URDF's root (the drone at its centre of rotation, REP 103 axes) as `parent`
+        itself, the drone's body frame (the MRS UAV System's <uav_name>/fcu): one TF tree."""
+        if not parent:
+            return
+        import tf2_ros
+        from geometry_msgs.msg import TransformStamped
+        t = TransformStamped()
+        t.header.stamp = self.rospy.Time.now()
+        t.header.frame_id, t.child_frame_id = parent, URDF_ROOT
+        t.transform.rotation.w = 1.0
+        self._static_tf = tf2_ros.StaticTransformBroadcaster()
+        self._static_tf.sendTransform(t)
 
     # ---------------------------------------------------------------- the port
 
@@ -395,9 +415,18 @@ class ArmNode:
         return self.srv.SetPositionResponse(ok, text)
 
 
+def interfaces(package_dir=DEFAULT_PACKAGE_DIR):
+    """(uavarm_ros.msg, uavarm_ros.srv): catkin's, in a built workspace; else generated now
+    (the toolchain's tests run the node from the source folder)."""
+    try:
+        return importlib.import_module(f"{PACKAGE}.msg"), importlib.import_module(f"{PACKAGE}.srv")
+    except ImportError:
+        return load_interfaces(package_dir)
+
+
 def main(argv=None, package_dir=DEFAULT_PACKAGE_DIR) -> int:
     rospy = import_ros()
-    msg, srv = load_interfaces(package_dir)
+    msg, srv = interfaces(package_dir)
     rospy.init_node("arm", argv=argv)
     try:
         node = ArmNode(rospy, msg, srv)

@@ -25,6 +25,7 @@ import time
 from collections import deque
 
 from . import llcp, messages
+from .message_table import HEARTBEAT_PERIOD_S
 from .messages import fault_names, refusal_reason
 
 try:
@@ -127,8 +128,7 @@ class ArmLink:
 
     def __init__(self, port, baud: int = 115200, *, silence: float | None = None):
         import serial
-        from ..model import config
-        period = config.load().heartbeat_period
+        period = HEARTBEAT_PERIOD_S
         if silence is None:
             silence = 3 * period
         if isinstance(port, str):

@@ -1,10 +1,34 @@
-"""Python codec of the LLCP messages, built from the one table in model/messages.py."""
+"""Python codec of the LLCP messages, built from the one table in model/messages.py (as
+message_table.py, generated beside this file)."""
 from __future__ import annotations
 
 import struct
+from typing import NamedTuple, Tuple
 
-from ..model.messages import FAULTS, MESSAGES, REFUSALS, RESET_CAUSES, STATES, Message
+from .message_table import FAULTS, REFUSALS, RESET_CAUSES, STATES
+from .message_table import MESSAGES as _TABLE
 
+FORMATS = {"u8": "B", "u16": "H", "i16": "h", "u32": "I", "i32": "i", "f32": "f"}
+
+
+class Message(NamedTuple):
+    name: str
+    id: int
+    direction: str                      # "to_arm" or "to_drone"
+    fields: Tuple[Tuple[str, str], ...]
+
+    @property
+    def struct_format(self) -> str:
+        """Little-endian, packed: the id byte, then the fields."""
+        return "<B" + "".join(FORMATS[t] for _, t in self.fields)
+
+    @property
+    def size(self) -> int:
+        """Payload bytes including the id byte."""
+        return struct.calcsize(self.struct_format)
+
+
+MESSAGES = tuple(Message(*row) for row in _TABLE)
 BY_NAME = {m.name: m for m in MESSAGES}
 BY_ID = {m.id: m for m in MESSAGES}
 
@@ -30,7 +54,7 @@ def encode(name: str, **fields) -> bytes:
 def decode(payload: bytes) -> tuple[str, dict]:
     if not payload:
         raise MessageError("empty payload")
-    msg: Message | None = BY_ID.get(payload[0])
+    msg = BY_ID.get(payload[0])
     if msg is None:
         raise MessageError(f"unknown message id 0x{payload[0]:02X}")
     if len(payload) != msg.size:
@@ -45,17 +69,17 @@ def fault_names(bits: int) -> list[str]:
 
 
 def state_name(value: int) -> str:
-    """The name of a heartbeat state value (model/messages.py STATES)."""
+    """The name of a heartbeat state value (STATES)."""
     return STATES[value][0] if 0 <= value < len(STATES) else f"unknown state {value}"
 
 
 def refusal_reason(value: int) -> str:
-    """What a heartbeat refusal value says (model/messages.py REFUSALS)."""
+    """What a heartbeat refusal value says (REFUSALS)."""
     return REFUSALS[value][1] if 0 <= value < len(REFUSALS) else f"unknown refusal {value}"
 
 
 def reset_cause_name(value: int) -> str:
-    """The name of a heartbeat reset_cause value (model/messages.py RESET_CAUSES)."""
+    """The name of a heartbeat reset_cause value (RESET_CAUSES)."""
     return RESET_CAUSES[value][0] if 0 <= value < len(RESET_CAUSES) else f"unknown reset cause {value}"
 
 
