@@ -1,5 +1,6 @@
 import os
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -62,6 +63,19 @@ def require_ros():
 
 
 CATKIN_PACKAGES = "catkin ros-message-generation python3-gencpp catkin-lint ros-std-msgs libstd-msgs-dev"
+# a shell with the system's tools only (no virtualenv): as on the robot
+SYSTEM_ENV = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
+
+
+def catkin_workspace(folder: Path) -> Path:
+    """ros/uavarm_ros in a fresh catkin workspace at `folder`, built with Debian's catkin and
+    the system Python (`catkin_make`); `source folder/devel/setup.bash` then finds it."""
+    require_catkin()
+    shutil.copytree(ROOT / "ros" / "uavarm_ros", folder / "src" / "uavarm_ros")
+    out = subprocess.run(["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3"], cwd=folder, env=SYSTEM_ENV,
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    return folder
 
 
 def require_catkin():

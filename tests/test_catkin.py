@@ -22,22 +22,16 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, require_catkin
+from conftest import ROOT, SYSTEM_ENV, catkin_workspace
 from uavarm.sim.sitl import Sitl
 
 PACKAGE = ROOT / "ros" / "uavarm_ros"
-CLEAN_ENV = {"PATH": "/usr/bin:/bin", "HOME": os.environ.get("HOME", "/root")}
+CLEAN_ENV = SYSTEM_ENV
 
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
-    require_catkin()
-    ws = tmp_path_factory.mktemp("catkin_ws")
-    shutil.copytree(PACKAGE, ws / "src" / "uavarm_ros")
-    out = subprocess.run(["catkin_make", "-DPYTHON_EXECUTABLE=/usr/bin/python3"], cwd=ws, env=CLEAN_ENV,
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
-    return ws
+    return catkin_workspace(tmp_path_factory.mktemp("catkin_ws"))
 
 
 def test_catkin_builds_the_messages_and_services_for_python_and_cpp(workspace):

@@ -1,14 +1,14 @@
 """The ROS 1 node (uavarm.link.ros_node) end to end: a real roscore on a free port, the simulated
 board behind a pseudo-terminal (SITL, in this process so its servo power and the frames it
-receives can be checked), the node started by `roslaunch uavarm_ros arm.launch`, and its
-services driven with rospy service proxies."""
+receives can be checked), the node started by `roslaunch uavarm_ros arm.launch` from a fresh
+catkin workspace with the system Python (as on the robot: no virtualenv, catkin's message
+classes), and its services driven with rospy service proxies."""
 import math
 import os
 import queue
 import signal
 import socket
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from conftest import ROOT, require_ros
+from conftest import SYSTEM_ENV, catkin_workspace, require_ros
 from oracles import arm_points
 from uavarm.link import llcp, messages
 from uavarm.link.ros_node import ATTITUDE_TYPES, roll_pitch
@@ -26,7 +26,6 @@ from uavarm.sim.sitl import Sitl
 
 SPEED = 2.0                          # simulated seconds per real second
 TARGET_M = (0.060, 0.020, -0.120)
-ROS_PACKAGE_PATH = ROOT / "ros"
 pytestmark = pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning")   # rospy's own
 
 
@@ -96,13 +95,12 @@ def ros(tmp_path_factory):
     rospy = require_ros()
     import rosgraph
     from uavarm.link.ros_node import load_interfaces
-    msg, srv = load_interfaces()                      # generated into build/ros by genpy
+    msg, srv = load_interfaces()                      # this process's: generated into build/ros by genpy
+    workspace = catkin_workspace(tmp_path_factory.mktemp("catkin_ws"))
     home = tmp_path_factory.mktemp("ros_home")
     uri = f"http://127.0.0.1:{free_port()}"
-    env = dict(os.environ, ROS_MASTER_URI=uri, ROS_HOME=str(home), ROS_LOG_DIR=str(home / "log"),
-               ROS_IP="127.0.0.1", ROS_PACKAGE_PATH=str(ROS_PACKAGE_PATH), PYTHONUNBUFFERED="1",
-               # the node's `#!/usr/bin/env python3` is this interpreter, with uavarm installed
-               PATH=os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")]))
+    env = dict(SYSTEM_ENV, ROS_MASTER_URI=uri, ROS_HOME=str(home), ROS_LOG_DIR=str(home / "log"),
+               ROS_IP="127.0.0.1", PYTHONUNBUFFERED="1", UAVARM_WORKSPACE=str(workspace))
     saved = {k: os.environ.get(k) for k in ("ROS_MASTER_URI", "ROS_HOME", "ROS_LOG_DIR", "ROS_IP")}
     os.environ.update({k: env[k] for k in saved})
     core_log = open(home / "roscore.out", "w")
@@ -162,8 +160,8 @@ class Arm:
         self.thread.start()
         args = dict(port=self.sitl.device, baud=115200, uav_name=ns, **launch_args)
         self.log_file = open(log_path, "w")
-        self.proc = subprocess.Popen(["roslaunch", "uavarm_ros", "arm.launch",
-                                      *(f"{k}:={v}" for k, v in args.items())],
+        launch = " ".join(["roslaunch uavarm_ros arm.launch", *(f"{k}:={v}" for k, v in args.items())])
+        self.proc = subprocess.Popen(["bash", "-c", f"source {env['UAVARM_WORKSPACE']}/devel/setup.bash && exec {launch}"],
                                      env=env, start_new_session=True, stdout=self.log_file,
                                      stderr=subprocess.STDOUT)
         self.statuses = queue.Queue()
