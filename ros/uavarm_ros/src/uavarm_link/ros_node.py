@@ -26,10 +26,12 @@ Parameters: `~port` (/dev/ttyACM0), `~baud` (115200), the attitude ones above,
 `~parent_frame` (none: the drone's body frame, published as the same place as the URDF's
 root `uav_frame`, so the arm hangs in the drone's TF tree).
 
-One thread reads the port: the main loop polls heartbeats, publishes them and sends the
-attitude or keep-alive frames. Service threads send their command and wait for the loop to
-deliver the heartbeats that confirm it; every read and write goes through one lock. The port
-is reopened every second after an error (a board unplugged, a SITL stopped).
+What it does without ROS is arm_core.ArmCore (the port and its reopening, each loop step,
+the status of a heartbeat, the commands); this module adapts it to ROS 1. One thread reads the
+port: the main loop polls heartbeats, publishes them and sends the attitude or keep-alive
+frames. Service threads send their command and wait for the loop to deliver the heartbeats
+that confirm it; every read and write goes through one lock. The port is reopened every
+second after an error (a board unplugged, a SITL stopped).
 
 In a catkin workspace the node takes catkin's message classes and needs nothing but rospy,
 the ROS message packages and pyserial (Python 3.8, Noetic's, and later). Run from the source
@@ -42,18 +44,14 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import importlib
-import math
 import os
 import shutil
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
-from .client import CommandRefused, LinkError, PortNotFound
-from .shared import SharedLink
-from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
+from .arm_core import JOINT_NAMES, ArmCore, roll_pitch
 
 PACKAGE = "uavarm_ros"
 # the ROS package's folder (this file is its src/uavarm_link/ros_node.py): msg/ and srv/
@@ -65,7 +63,6 @@ STD_MSGS_DEFINITIONS = Path("/usr/share/std_msgs/msg")
 STATUS_FRAME = "arm_base"
 URDF_ROOT = "uav_frame"
 DEFAULT_ATTITUDE_TOPIC = "estimation_manager/odom_main"
-FAULT_TEXT = dict(FAULTS)
 
 # ~attitude_type -> (module, class, the orientation quaternion of a message or None)
 ATTITUDE_TYPES = {
@@ -91,10 +88,6 @@ def _debian_ros_path() -> bool:
         return False
     sys.path.append(str(DEBIAN_DIST_PACKAGES))
     return True
-
-
-# The arm's joints as the generated URDF (generated/uavarm_arm.urdf) names them.
-JOINT_NAMES = ("arm_joint1", "arm_joint2", "arm_joint3")
 
 
 def import_ros():
@@ -175,71 +168,58 @@ def attitude_class(type_name: str):
     return getattr(importlib.import_module(module), cls), orientation
 
 
-def roll_pitch(x: float, y: float, z: float, w: float) -> tuple[float, float]:
-    """Roll and pitch (rad) of Z-Y-X Euler angles (R = Rz(yaw) Ry(pitch) Rx(roll)) of a
-    quaternion, normalised first; ValueError for a zero or non-finite one."""
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    if not (math.isfinite(n) and n > 1e-9):
-        raise ValueError(f"not a rotation quaternion: ({x}, {y}, {z}, {w})")
-    x, y, z, w = x / n, y / n, z / n, w / n
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    return roll, pitch
+class RosLog:
+    """The core's logger on rospy."""
 
+    def __init__(self, rospy):
+        self.rospy = rospy
 
-# ------------------------------------------------------------------ the node
+    def info(self, text: str) -> None:
+        self.rospy.loginfo(text)
 
-def describe(hb: dict) -> str:
-    return (f"enabled {hb['enabled']} engaged {hb['engaged']} set position "
-            f"({hb['set_x'] / 1000:.4f}, {hb['set_y'] / 1000:.4f}, {hb['set_z'] / 1000:.4f}) m "
-            f"faults {fault_names(hb['faults'])}")
+    def warn(self, text: str) -> None:
+        self.rospy.logwarn(text)
+
+    def error(self, text: str) -> None:
+        self.rospy.logerr(text)
+
+    def warn_every(self, seconds: float, text: str) -> None:
+        self.rospy.logwarn_throttle(seconds, text)
 
 
 class ArmNode:
-    REOPEN_PERIOD = 1.0
+    """ArmCore on ROS 1: parameters, the attitude topic, the status and joint_states topics,
+    the services, the static TF to the drone's body frame."""
 
     def __init__(self, rospy, msg, srv):
-        import serial
+        from sensor_msgs.msg import JointState
         from std_srvs.srv import SetBool, SetBoolResponse
         self.rospy, self.msg, self.srv = rospy, msg, srv
-        self._serial_errors = (serial.SerialException, OSError)
         self._SetBoolResponse = SetBoolResponse
-        self.port = rospy.get_param("~port", "/dev/ttyACM0")
-        self.baud = int(rospy.get_param("~baud", 115200))
         self.attitude_rate = float(rospy.get_param("~attitude_rate", 100.0))
-        self.attitude_timeout = float(rospy.get_param("~attitude_timeout", 0.2))
-        self.keep_alive = bool(rospy.get_param("~keep_alive", True))
-        self.keep_alive_period = float(rospy.get_param("~keep_alive_period", 0.2))
         if not self.attitude_rate >= 50:
             raise ValueError(f"~attitude_rate must be at least 50 Hz, got {self.attitude_rate}")
         topic = rospy.get_param("~attitude_topic", DEFAULT_ATTITUDE_TOPIC)
         att_type = rospy.get_param("~attitude_type", "nav_msgs/Odometry")
         att_class, self._orientation = attitude_class(att_type)
-
-        self.link: SharedLink | None = None
-        self.link_error = "not opened yet"
-        self._reopen_at = 0.0
-        self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
-        self._attitude = None                     # (roll, pitch, stamp_us or None, received)
-        self._topic = rospy.resolve_name(topic)
-        self.attitude_source = "imu"              # what the last step forwarded: "drone" or "imu"
-        self._last_hb = None
-        self._last_hb_time = None
-        self._silent = False
-
+        self.core = ArmCore(rospy.get_param("~port", "/dev/ttyACM0"), int(rospy.get_param("~baud", 115200)),
+                            RosLog(rospy), self._publish,
+                            attitude_timeout=float(rospy.get_param("~attitude_timeout", 0.2)),
+                            keep_alive=bool(rospy.get_param("~keep_alive", True)),
+                            keep_alive_period=float(rospy.get_param("~keep_alive_period", 0.2)),
+                            attitude_topic=rospy.resolve_name(topic))
         self.status_pub = rospy.Publisher("~status", msg.ArmStatus, queue_size=10)
-        from sensor_msgs.msg import JointState
         self.joint_pub = rospy.Publisher("joint_states", JointState, queue_size=10)   # robot_state_publisher's
         self._joint_state = JointState
         self._attach(rospy.get_param("~parent_frame", ""))
         rospy.Subscriber(topic, att_class, self._on_attitude, queue_size=1)
-        self._open(time.monotonic())
+        self.core.open(time.monotonic())
         rospy.Service("~enable", SetBool, self._on_enable)
         rospy.Service("~engage", SetBool, self._on_engage)
         rospy.Service("~set_position", srv.SetPosition, self._on_set_position)
         rospy.loginfo("arm: board on %s, attitude from %s (%s) at %.0f Hz, keep-alive %s",
-                      self.port, rospy.resolve_name(topic), att_type, self.attitude_rate,
-                      "on" if self.keep_alive else "off")
+                      self.core.port, self.core.attitude_topic, att_type, self.attitude_rate,
+                      "on" if self.core.keep_alive else "off")
 
     def _attach(self, parent: str) -> None:
         """The URDF's root (the drone at its centre of rotation, REP 103 axes) as `parent`
@@ -255,117 +235,24 @@ class ArmNode:
         self._static_tf = tf2_ros.StaticTransformBroadcaster()
         self._static_tf.sendTransform(t)
 
-    # ---------------------------------------------------------------- the port
-
-    def _open(self, now: float) -> None:
-        try:
-            self.link = SharedLink(self.port, self.baud)
-        except PortNotFound as exc:
-            if self.link_error != str(exc):
-                self.rospy.logerr("arm: %s; retrying every %.0f s", exc, self.REOPEN_PERIOD)
-            self.link_error = str(exc)
-            self._reopen_at = now + self.REOPEN_PERIOD
-            return
-        self.link_error = None
-        self._last_hb_time, self._silent, self._restarts = now, False, 0
-        self.rospy.loginfo("arm: %s open", self.port)
-
-    def _lose(self, exc, now: float) -> None:
-        why = f"{self.port}: {exc}"
-        self.rospy.logerr("arm: serial link lost (%s); reopening every %.0f s", why, self.REOPEN_PERIOD)
-        link, self.link, self.link_error = self.link, None, why
-        link.fail(why)
-        self._reopen_at = now + self.REOPEN_PERIOD
-
-    # ---------------------------------------------------------------- the loop
-
     def spin(self) -> None:
         period = 1.0 / self.attitude_rate
         next_t = time.monotonic()
         while not self.rospy.is_shutdown():
-            self.step(time.monotonic())
+            self.core.step(time.monotonic())
             next_t += period
             delay = next_t - time.monotonic()
             if delay > 0:
                 time.sleep(delay)
             else:
                 next_t = time.monotonic()          # late: skip, never burst
-        if self.link is not None:
-            self.link.fail("node shut down")
+        self.core.close()
 
-    def step(self, now: float) -> None:
-        link = self.link
-        if link is None:
-            if now >= self._reopen_at:
-                self._open(now)
-            return
-        try:
-            for hb in link.poll():
-                self._on_heartbeat(hb, now)
-            self._check_silence(now)
-            att = self._attitude
-            fresh = att is not None and now - att[3] <= self.attitude_timeout
-            self._report_source("drone" if fresh else "imu")
-            if fresh:
-                link.send_attitude(att[0], att[1], att[2])
-            elif link.engaged:
-                self.rospy.logwarn_throttle(5.0, "arm: engaged but no attitude on the attitude topic for "
-                                            f"{self.attitude_timeout} s"
-                                            + ("" if self.keep_alive else "; keep-alive off: the arm will park"))
-                if self.keep_alive and now - link.last_sent >= self.keep_alive_period:
-                    link.keep_alive()
-        except LinkError:
-            pass                                    # failed already (a service thread saw it)
-        except self._serial_errors as exc:
-            self._lose(exc, now)
-
-    def _report_source(self, source: str) -> None:
-        if source == self.attitude_source:
-            return
-        self.attitude_source = source
-        if source == "drone":
-            self.rospy.loginfo("arm: forwarding the drone's attitude from %s to the board", self._topic)
-        else:
-            self.rospy.logwarn("arm: no attitude on %s for %.2f s: the board runs on its own IMU only",
-                               self._topic, self.attitude_timeout)
-
-    def _check_silence(self, now: float) -> None:
-        if self._last_hb_time is not None and now - self._last_hb_time > self.link.silence and not self._silent:
-            self._silent = True
-            self.rospy.logerr("arm: no heartbeat from the board for %.1f s (powered? right port and baud?)",
-                              now - self._last_hb_time)
-
-    def _on_heartbeat(self, hb: dict, now: float) -> None:
-        rospy = self.rospy
-        if self._silent:
-            rospy.loginfo("arm: heartbeats back")
-        self._silent, self._last_hb_time = False, now
-        if self.link.age.restarts > self._restarts:
-            self._restarts = self.link.age.restarts
-            rospy.logwarn("arm: the board restarted (its uptime went back to %.1f s; reset cause %s%s)",
-                          hb["uptime_ms"] / 1000.0, reset_cause_name(hb["reset_cause"]),
-                          f", after a {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else "")
-        names = fault_names(hb["faults"])
-        before = set() if self._last_hb is None else set(fault_names(self._last_hb["faults"]))
-        for name in names:
-            if name not in before:
-                rospy.logwarn("arm: fault %s: %s", name, FAULT_TEXT[name])
-        self._last_hb = hb
-
+    def _publish(self, status: dict) -> None:
         m = self.msg.ArmStatus()
-        m.header.stamp, m.header.frame_id = rospy.Time.now(), STATUS_FRAME
-        m.attitude_source = self.attitude_source
-        m.enabled, m.engaged, m.unreachable = bool(hb["enabled"]), bool(hb["engaged"]), bool(hb["unreachable"])
-        m.seq, m.uptime, m.state = hb["seq"], hb["uptime_ms"] / 1000.0, hb["state"]
-        m.refusal = REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else ""
-        m.reset_cause = reset_cause_name(hb["reset_cause"])
-        m.last_fault = fault_vector_name(hb["last_fault"]) if hb["last_fault"] else ""
-        m.faults, m.fault_names = hb["faults"], names
-        m.servo_errors = [hb["servo1_error"], hb["servo2_error"], hb["servo3_error"]]
-        m.set_position = [hb["set_x"] / 1000.0, hb["set_y"] / 1000.0, hb["set_z"] / 1000.0]
-        m.joints = [hb["q1"], hb["q2"], hb["q3"]]
-        m.link_frames_ok, m.link_errors, m.servo_timeouts = (hb["link_frames_ok"], hb["link_errors"],
-                                                             hb["servo_timeouts"])
+        m.header.stamp, m.header.frame_id = self.rospy.Time.now(), STATUS_FRAME
+        for field, value in status.items():
+            setattr(m, field, value)
         self.status_pub.publish(m)
         js = self._joint_state()
         js.header.stamp = m.header.stamp
@@ -384,35 +271,16 @@ class ArmNode:
             self.rospy.logwarn_throttle(10.0, f"arm: attitude ignored: {exc}")
             return
         stamp = message.header.stamp
-        stamp_us = stamp.to_nsec() // 1000 if not stamp.is_zero() else None
-        self._attitude = (roll, pitch, stamp_us, time.monotonic())
-
-    # ---------------------------------------------------------------- services
-
-    def _command(self, action) -> tuple[bool, str]:
-        with self.command_lock:
-            link = self.link
-            if link is None:
-                return False, f"no link to the board: {self.link_error}"
-            try:
-                return True, describe(action(link))
-            except (CommandRefused, LinkError, ValueError) as exc:
-                return False, str(exc)
-            except self._serial_errors as exc:
-                return False, f"serial link lost: {self.port}: {exc}"
+        self.core.attitude(roll, pitch, stamp.to_nsec() // 1000 if not stamp.is_zero() else None, time.monotonic())
 
     def _on_enable(self, req):
-        return self._SetBoolResponse(*self._command(lambda link: link.enable(bool(req.data))))
+        return self._SetBoolResponse(*self.core.enable(bool(req.data)))
 
     def _on_engage(self, req):
-        return self._SetBoolResponse(*self._command(lambda link: link.engage(bool(req.data))))
+        return self._SetBoolResponse(*self.core.engage(bool(req.data)))
 
     def _on_set_position(self, req):
-        x, y, z = req.x, req.y, req.z
-        ok, text = self._command(lambda link: link.set_position(x * 1000.0, y * 1000.0, z * 1000.0))
-        if not ok:
-            text = f"target ({x:.4f}, {y:.4f}, {z:.4f}) m: {text} (board figures in mm)"
-        return self.srv.SetPositionResponse(ok, text)
+        return self.srv.SetPositionResponse(*self.core.set_position(req.x, req.y, req.z))
 
 
 def interfaces(package_dir=DEFAULT_PACKAGE_DIR):

@@ -1,0 +1,202 @@
+"""What the drone-side node does, without ROS: the port (opened, lost and reopened every
+second), each loop step (the heartbeats in; the drone's attitude, or a keep-alive, out), the
+status a heartbeat gives, and commands answered once a heartbeat confirms them. The ROS 1
+node (ros_node) is an adapter around it: parameters, topics, services, log; a ROS 2 node
+would be another.
+
+No ROS import here: a logger (info, warn, error, warn_every(seconds, text)) and a status
+callback are passed in.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from typing import Callable, Optional, Tuple
+
+from .client import CommandRefused, LinkError, PortNotFound
+from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
+from .shared import SharedLink
+
+FAULT_TEXT = dict(FAULTS)
+# The arm's joints as the generated URDF (generated/uavarm_arm.urdf) names them.
+JOINT_NAMES = ("arm_joint1", "arm_joint2", "arm_joint3")
+
+
+def roll_pitch(x: float, y: float, z: float, w: float) -> Tuple[float, float]:
+    """Roll and pitch (rad) of Z-Y-X Euler angles (R = Rz(yaw) Ry(pitch) Rx(roll)) of a
+    quaternion, normalised first; ValueError for a zero or non-finite one."""
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (math.isfinite(n) and n > 1e-9):
+        raise ValueError(f"not a rotation quaternion: ({x}, {y}, {z}, {w})")
+    x, y, z, w = x / n, y / n, z / n, w / n
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    return roll, pitch
+
+
+def describe(hb: dict) -> str:
+    return (f"enabled {hb['enabled']} engaged {hb['engaged']} set position "
+            f"({hb['set_x'] / 1000:.4f}, {hb['set_y'] / 1000:.4f}, {hb['set_z'] / 1000:.4f}) m "
+            f"faults {fault_names(hb['faults'])}")
+
+
+def status_of(hb: dict, attitude_source: str) -> dict:
+    """A heartbeat as the node reports it: SI units (m, s), names for codes."""
+    return {
+        "attitude_source": attitude_source,
+        "enabled": bool(hb["enabled"]), "engaged": bool(hb["engaged"]), "unreachable": bool(hb["unreachable"]),
+        "seq": hb["seq"], "uptime": hb["uptime_ms"] / 1000.0, "state": hb["state"],
+        "refusal": REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else "",
+        "reset_cause": reset_cause_name(hb["reset_cause"]),
+        "last_fault": fault_vector_name(hb["last_fault"]) if hb["last_fault"] else "",
+        "faults": hb["faults"], "fault_names": fault_names(hb["faults"]),
+        "servo_errors": [hb["servo1_error"], hb["servo2_error"], hb["servo3_error"]],
+        "set_position": [hb["set_x"] / 1000.0, hb["set_y"] / 1000.0, hb["set_z"] / 1000.0],
+        "joints": [hb["q1"], hb["q2"], hb["q3"]],
+        "link_frames_ok": hb["link_frames_ok"], "link_errors": hb["link_errors"],
+        "servo_timeouts": hb["servo_timeouts"],
+    }
+
+
+class ArmCore:
+    REOPEN_PERIOD = 1.0
+
+    def __init__(self, port: str, baud: int, log, on_status: Callable[[dict], None], *,
+                 attitude_timeout: float = 0.2, keep_alive: bool = True, keep_alive_period: float = 0.2,
+                 attitude_topic: str = "the attitude topic"):
+        import serial
+        self.port, self.baud, self.log, self.on_status = port, baud, log, on_status
+        self.attitude_timeout, self.keep_alive, self.keep_alive_period = attitude_timeout, keep_alive, keep_alive_period
+        self.attitude_topic = attitude_topic
+        self._serial_errors = (serial.SerialException, OSError)
+        self.link: Optional[SharedLink] = None
+        self.link_error = "not opened yet"
+        self._reopen_at = 0.0
+        self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
+        self._attitude = None                     # (roll, pitch, stamp_us or None, received)
+        self.attitude_source = "imu"              # what the last step forwarded: "drone" or "imu"
+        self._last_hb = None
+        self._last_hb_time = None
+        self._silent = False
+        self._restarts = 0
+
+    # ---------------------------------------------------------------- inputs
+
+    def attitude(self, roll: float, pitch: float, stamp_us: Optional[int], received: float) -> None:
+        """The drone's latest attitude (rad), its stamp (us, its clock) and when it came."""
+        self._attitude = (roll, pitch, stamp_us, received)
+
+    # ---------------------------------------------------------------- the port
+
+    def open(self, now: float) -> None:
+        try:
+            self.link = SharedLink(self.port, self.baud)
+        except PortNotFound as exc:
+            if self.link_error != str(exc):
+                self.log.error(f"arm: {exc}; retrying every {self.REOPEN_PERIOD:.0f} s")
+            self.link_error = str(exc)
+            self._reopen_at = now + self.REOPEN_PERIOD
+            return
+        self.link_error = None
+        self._last_hb_time, self._silent, self._restarts = now, False, 0
+        self.log.info(f"arm: {self.port} open")
+
+    def _lose(self, exc, now: float) -> None:
+        why = f"{self.port}: {exc}"
+        self.log.error(f"arm: serial link lost ({why}); reopening every {self.REOPEN_PERIOD:.0f} s")
+        link, self.link, self.link_error = self.link, None, why
+        link.fail(why)
+        self._reopen_at = now + self.REOPEN_PERIOD
+
+    def close(self, why: str = "node shut down") -> None:
+        if self.link is not None:
+            self.link.fail(why)
+
+    # ---------------------------------------------------------------- the loop
+
+    def step(self, now: float) -> None:
+        link = self.link
+        if link is None:
+            if now >= self._reopen_at:
+                self.open(now)
+            return
+        try:
+            for hb in link.poll():
+                self._on_heartbeat(hb, now)
+            self._check_silence(now)
+            att = self._attitude
+            fresh = att is not None and now - att[3] <= self.attitude_timeout
+            self._report_source("drone" if fresh else "imu")
+            if fresh:
+                link.send_attitude(att[0], att[1], att[2])
+            elif link.engaged:
+                self.log.warn_every(5.0, "arm: engaged but no attitude on the attitude topic for "
+                                         f"{self.attitude_timeout} s"
+                                    + ("" if self.keep_alive else "; keep-alive off: the arm will park"))
+                if self.keep_alive and now - link.last_sent >= self.keep_alive_period:
+                    link.keep_alive()
+        except LinkError:
+            pass                                    # failed already (a command thread saw it)
+        except self._serial_errors as exc:
+            self._lose(exc, now)
+
+    def _report_source(self, source: str) -> None:
+        if source == self.attitude_source:
+            return
+        self.attitude_source = source
+        if source == "drone":
+            self.log.info(f"arm: forwarding the drone's attitude from {self.attitude_topic} to the board")
+        else:
+            self.log.warn(f"arm: no attitude on {self.attitude_topic} for {self.attitude_timeout:.2f} s: "
+                          "the board runs on its own IMU only")
+
+    def _check_silence(self, now: float) -> None:
+        if self._last_hb_time is not None and now - self._last_hb_time > self.link.silence and not self._silent:
+            self._silent = True
+            self.log.error(f"arm: no heartbeat from the board for {now - self._last_hb_time:.1f} s "
+                           "(powered? right port and baud?)")
+
+    def _on_heartbeat(self, hb: dict, now: float) -> None:
+        if self._silent:
+            self.log.info("arm: heartbeats back")
+        self._silent, self._last_hb_time = False, now
+        if self.link.age.restarts > self._restarts:
+            self._restarts = self.link.age.restarts
+            self.log.warn(f"arm: the board restarted (its uptime went back to {hb['uptime_ms'] / 1000.0:.1f} s; "
+                          f"reset cause {reset_cause_name(hb['reset_cause'])}"
+                          + (f", after a {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else "") + ")")
+        before = set() if self._last_hb is None else set(fault_names(self._last_hb["faults"]))
+        for name in fault_names(hb["faults"]):
+            if name not in before:
+                self.log.warn(f"arm: fault {name}: {FAULT_TEXT[name]}")
+        self._last_hb = hb
+        self.on_status(status_of(hb, self.attitude_source))
+
+    # ---------------------------------------------------------------- commands
+
+    def command(self, action) -> Tuple[bool, str]:
+        """action(link) under the command lock: (True, the confirming heartbeat described) or
+        (False, why not)."""
+        with self.command_lock:
+            link = self.link
+            if link is None:
+                return False, f"no link to the board: {self.link_error}"
+            try:
+                return True, describe(action(link))
+            except (CommandRefused, LinkError, ValueError) as exc:
+                return False, str(exc)
+            except self._serial_errors as exc:
+                return False, f"serial link lost: {self.port}: {exc}"
+
+    def enable(self, on: bool) -> Tuple[bool, str]:
+        return self.command(lambda link: link.enable(on))
+
+    def engage(self, on: bool) -> Tuple[bool, str]:
+        return self.command(lambda link: link.engage(on))
+
+    def set_position(self, x: float, y: float, z: float) -> Tuple[bool, str]:
+        """The target in metres (the board takes millimetres)."""
+        ok, text = self.command(lambda link: link.set_position(x * 1000.0, y * 1000.0, z * 1000.0))
+        if not ok:
+            text = f"target ({x:.4f}, {y:.4f}, {z:.4f}) m: {text} (board figures in mm)"
+        return ok, text

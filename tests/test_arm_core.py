@@ -1,0 +1,103 @@
+"""The node's core without ROS (uavarm.link.arm_core: what a ROS 2 adapter would wrap): a
+SITL's board driven through it, its loop in a thread as the node runs it, its log and
+statuses collected.
+
+Oracles: the heartbeat's written fields and units (mm and ms on the wire, m and s out), the
+board's own counters (the SITL's app state), the documented refusal and fault names."""
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+
+from uavarm.link import messages
+from uavarm.link.arm_core import ArmCore, status_of
+from uavarm.model import config
+from uavarm.sim.sitl import Sitl
+
+SPEED = 2.0
+
+
+class Log:
+    def __init__(self):
+        self.lines = []
+
+    def info(self, text):
+        self.lines.append(("info", text))
+
+    def warn(self, text):
+        self.lines.append(("warn", text))
+
+    def error(self, text):
+        self.lines.append(("error", text))
+
+    def warn_every(self, seconds, text):
+        self.warn(text)
+
+
+@pytest.fixture
+def core():
+    """An ArmCore on a SITL's port, its loop stepping at 100 Hz in a thread."""
+    sitl = Sitl(speed=SPEED)
+    threading.Thread(target=sitl.run, daemon=True).start()
+    log, statuses = Log(), []
+    c = ArmCore(sitl.device, 115200, log, statuses.append)
+    c.open(time.monotonic())
+    stop = threading.Event()
+
+    def loop():
+        while not stop.is_set():
+            c.step(time.monotonic())
+            time.sleep(0.01)
+    threading.Thread(target=loop, daemon=True).start()
+    yield c, sitl, log, statuses
+    stop.set()
+    c.close()
+    sitl.stop()
+
+
+def heartbeat(**changes):
+    names = [name for name, _ in messages.BY_NAME["heartbeat"].fields]
+    hb = dict.fromkeys(names, 0)
+    hb.update(changes)
+    return hb
+
+
+def test_a_status_is_the_heartbeat_in_si_units_and_names():
+    refusal = [name for name, _ in messages.REFUSALS].index("no_route")
+    hb = heartbeat(set_x=60.0, set_y=-20.0, set_z=-120.0, uptime_ms=1500, refusal=refusal, faults=0b101,
+                   q1=0.1, q2=0.2, q3=-0.3, enabled=1, last_fault=3)
+    s = status_of(hb, "imu")
+    assert s["set_position"] == pytest.approx([0.060, -0.020, -0.120]) and s["uptime"] == 1.5
+    assert s["refusal"] == "no_route" and s["fault_names"] == ["servo_timeout", "servo_config"]
+    assert s["joints"] == [0.1, 0.2, -0.3] and s["enabled"] is True and s["last_fault"] == "HardFault"
+    assert status_of(heartbeat(), "drone")["refusal"] == "" and status_of(heartbeat(), "drone")["last_fault"] == ""
+
+
+def test_the_core_drives_the_board_and_forwards_the_attitude(core):
+    c, sitl, log, statuses = core
+    assert c.enable(True)[0]
+    ok, text = c.set_position(0.060, 0.020, -0.120)
+    assert ok, text
+    assert c.engage(True)[0]
+    assert statuses and statuses[-1]["set_position"] == pytest.approx([0.060, 0.020, -0.120], abs=1e-6)
+    before = sitl.board.app.drone_attitudes
+    c.attitude(0.01, -0.02, None, time.monotonic())
+    time.sleep(0.1)
+    assert sitl.board.app.drone_attitudes > before                      # forwarded while fresh
+    assert ("info", f"arm: forwarding the drone's attitude from {c.attitude_topic} to the board") in log.lines
+    # none fresh: the core keeps the engaged arm alive past the board's silence timeout
+    time.sleep(2 * config.load().link_silence_timeout / SPEED + 0.5)
+    assert statuses[-1]["engaged"] and statuses[-1]["attitude_source"] == "imu"
+    ok, text = c.set_position(5.0, 0.0, 0.0)
+    assert not ok and "unreachable" in text and "(board figures in mm)" in text
+
+
+def test_a_port_that_is_not_there_is_retried_with_one_error():
+    log = Log()
+    c = ArmCore("/dev/no-such-arm", 115200, log, lambda s: None)
+    for k in range(3):
+        c.step(100.0 + 1.5 * k)                       # past the reopen period each time
+    assert c.link is None and [level for level, _ in log.lines] == ["error"]
+    assert c.enable(True) == (False, f"no link to the board: {c.link_error}")
