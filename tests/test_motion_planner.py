@@ -158,6 +158,29 @@ def test_a_target_that_crossed_the_axis_is_followed_on_the_far_side():
     np.testing.assert_allclose(ee(list(m.aim)), path[-1], atol=TOL_MM)
 
 
+@pytest.mark.parametrize("start", [0.0, 20.0])
+@pytest.mark.parametrize("side", [1, -1], ids=["turning right", "turning left"])
+@pytest.mark.parametrize("past", [-0.2, 0.2])
+def test_the_branch_goes_over_once_the_far_plane_is_within_half_the_window(past, side, start):
+    """Started with joint 1 at `start` deg and carried round the axis, either way, to 0.2 deg
+    short of, or past, 180 - window / 2 (135 deg) from there: short of it the arm reaches at
+    the window's edge; past it joint 1 faces the same plane half a turn over (45 deg the other
+    side of where it started), reaching the other way."""
+    q = np.radians([start, 40.0, -60.0])
+    m = started(q)
+    r, z = math.hypot(*ee(q)[:2]), ee(q)[2]
+    window = MODEL.motion.follow_window_deg
+    turn = 180.0 - window / 2 + past
+    for deg in list(np.arange(1.0, turn, 1.0)) + [turn]:
+        tick(m, round_axis(start + side * deg, r, z))
+    if past < 0:
+        assert m.aim[0] == pytest.approx(math.radians(start + side * window), abs=1e-5)
+        assert m.given_up & LIB.KIN_BRANCH_Q1
+    else:
+        assert m.aim[0] == pytest.approx(math.radians(start + side * (turn - 180.0)), abs=1e-4) and m.given_up == 0
+        np.testing.assert_allclose(ee(list(m.aim)), round_axis(start + side * turn, r, z), atol=TOL_MM)
+
+
 def test_a_target_circling_the_axis_is_followed_within_the_window_every_turn():
     """A target carried three times round the axis: joint 1 never aims further than the
     window from where the goal put it, and each time the target comes back round to there

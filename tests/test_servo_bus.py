@@ -108,8 +108,9 @@ def test_power_on_boot_wait_and_configuration():
     # the servos' own verdict: no instruction since the configuration gave an error
     assert all(p.raw[4] == 0 for p in log.replies), [p.raw.hex(" ") for p in log.replies if p.raw[4]]
     # factory-fresh (Status Return Level 2) they answered every WRITE too, with no parameter:
-    # each reply taken as such, none counted as bad or missing
+    # each reply taken as the answer to its request (none stray), none counted as bad or missing
     assert any(r.raw[3] == 2 for r in log.replies), "the writes were answered"
+    assert board.app.bus.stray_packets == 0
     for j in range(3):
         s = servo_c(board, j)
         assert (s.timeouts, s.retries, s.bad_packets, s.error_packets) == (0, 0, 0, 0), j
