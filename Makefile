@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: codegen check-generated test bench sim-report fuzz fuzz-long mutate clean
+.PHONY: codegen test bench sim-report fuzz fuzz-long mutate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv --system-site-packages $(VENV)

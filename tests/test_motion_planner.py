@@ -158,14 +158,15 @@ def test_a_target_that_crossed_the_axis_is_followed_on_the_far_side():
     np.testing.assert_allclose(ee(list(m.aim)), path[-1], atol=TOL_MM)
 
 
-@pytest.mark.parametrize("start", [0.0, 20.0])
-@pytest.mark.parametrize("side", [1, -1], ids=["turning right", "turning left"])
+@pytest.mark.parametrize("start, side", [(0.0, 1), (0.0, -1), (20.0, 1), (20.0, -1), (80.0, -1)],
+                         ids=lambda v: f"{v:g}" if isinstance(v, float) else ("turning right" if v > 0 else "turning left"))
 @pytest.mark.parametrize("past", [-0.2, 0.2])
 def test_the_branch_goes_over_once_the_far_plane_is_within_half_the_window(past, side, start):
-    """Started with joint 1 at `start` deg and carried round the axis, either way, to 0.2 deg
-    short of, or past, 180 - window / 2 (135 deg) from there: short of it the arm reaches at
-    the window's edge; past it joint 1 faces the same plane half a turn over (45 deg the other
-    side of where it started), reaching the other way."""
+    """Started with joint 1 at `start` deg and carried round the axis, either way (away from
+    joint 1's limit when the window's edge would pass it), to 0.2 deg short of, or past,
+    180 - window / 2 (135 deg) from there: short of it the arm reaches at the window's edge;
+    past it joint 1 faces the same plane half a turn over (45 deg the other side of where it
+    started), reaching the other way."""
     q = np.radians([start, 40.0, -60.0])
     m = started(q)
     r, z = math.hypot(*ee(q)[:2]), ee(q)[2]

@@ -134,7 +134,7 @@ class ArmLink:
         if isinstance(port, str):
             try:
                 self.serial = serial.serial_for_url(port, baudrate=baud, timeout=0)
-            except (serial.SerialException, OSError) as exc:
+            except (serial.SerialException, OSError, _TermiosError) as exc:   # (termios: gone while opening)
                 raise PortNotFound(f"{port}: cannot open the serial port ({exc})") from None
         else:
             self.serial = port
