@@ -86,13 +86,15 @@ def launched(workspace, tmp_path_factory):
     port = env["ROS_MASTER_URI"].rsplit(":", 1)[1]
     procs = []
     try:
-        for command, log in ((f"roscore -p {port}", "roscore.out"),
-                             (f"roslaunch uavarm_ros arm.launch port:={sitl.device} uav_name:=uav1", "launch.out")):
-            procs.append(subprocess.Popen(["bash", "-c", f"source devel/setup.bash && exec {command}"], cwd=workspace,
-                                          env=env, start_new_session=True, stdout=open(home / log, "w"),
-                                          stderr=subprocess.STDOUT))
-            time.sleep(2.0)
-        out = in_workspace(workspace, "rosservice list", env, wait_for="/uav1/arm/enable", home=home)
+        for command, log, up in ((f"roscore -p {port}", "roscore.out", "rosparam get /rosdistro"),
+                                 (f"roslaunch uavarm_ros arm.launch port:={sitl.device} uav_name:=uav1", "launch.out",
+                                  "rosservice list")):
+            with open(home / log, "w") as out:
+                procs.append(subprocess.Popen(["bash", "-c", f"source devel/setup.bash && exec {command}"],
+                                              cwd=workspace, env=env, start_new_session=True, stdout=out,
+                                              stderr=subprocess.STDOUT))
+            in_workspace(workspace, up, env, until_ok=True)       # the master, then the node's services
+        out = in_workspace(workspace, "rosservice list", env, wait_for="/uav1/arm/enable")
         assert "/uav1/arm/enable" in out.stdout, (home / "launch.out").read_text()[-3000:]
         yield workspace, env, home
     finally:
@@ -101,14 +103,15 @@ def launched(workspace, tmp_path_factory):
         sitl.stop()
 
 
-def in_workspace(ws, command: str, env=None, wait_for: str | None = None, home=None) -> subprocess.CompletedProcess:
-    """`command` in the workspace's environment; with wait_for, repeated (up to 60 s) until
-    its output shows that text."""
+def in_workspace(ws, command: str, env=None, wait_for: str | None = None, until_ok: bool = False) -> subprocess.CompletedProcess:
+    """`command` in the workspace's environment; with wait_for (or until_ok), repeated (up to
+    60 s) until its output shows that text (or it succeeds)."""
     end = time.monotonic() + 60
     while True:
         out = subprocess.run(["bash", "-c", f"source devel/setup.bash && {command}"], cwd=ws, env=env or CLEAN_ENV,
                              capture_output=True, text=True, timeout=120)
-        if wait_for is None or wait_for in out.stdout or time.monotonic() > end:
+        done = (wait_for is None or wait_for in out.stdout) and (not until_ok or out.returncode == 0)
+        if done or time.monotonic() > end:
             return out
         time.sleep(1.0)
 
