@@ -10,10 +10,6 @@ the node builds at run time (same definition, same MD5), ROS's own tools (rostop
 rosservice, tf2), vermin."""
 from __future__ import annotations
 
-import os
-import shutil
-import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -22,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, SYSTEM_ENV, catkin_workspace
+from conftest import ROOT, SYSTEM_ENV, catkin_workspace, free_port, stop_group
 from uavarm.sim.sitl import Sitl
 
 PACKAGE = ROOT / "ros" / "uavarm_ros"
@@ -56,22 +52,6 @@ def test_catkin_lint_finds_nothing(workspace):
     out = subprocess.run(["catkin_lint", "-W2", "--strict", str(workspace / "src" / "uavarm_ros")], env=CLEAN_ENV,
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0 and "found 0 problems" in out.stdout + out.stderr, out.stdout + out.stderr
-
-
-def free_port() -> int:
-    with socket.socket() as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
-
-
-def stop_group(proc: subprocess.Popen) -> None:
-    if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, signal.SIGINT)
-            proc.wait(timeout=15)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.wait()
 
 
 @pytest.fixture(scope="module")

@@ -6,8 +6,6 @@ classes), and its services driven with rospy service proxies."""
 import math
 import os
 import queue
-import signal
-import socket
 import subprocess
 import threading
 import time
@@ -17,7 +15,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from conftest import SYSTEM_ENV, catkin_workspace, require_ros
+from conftest import SYSTEM_ENV, catkin_workspace, free_port, require_ros, stop_group
 from oracles import arm_points
 from uavarm.link import llcp, messages
 from uavarm.link.ros_node import ATTITUDE_TYPES, roll_pitch
@@ -67,27 +65,6 @@ def test_the_sign_conventions_written_in_the_docs_hold():
 
 
 # ------------------------------------------------------------------ fixtures
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def stop_group(proc: subprocess.Popen, timeout: float = 10.0) -> None:
-    """SIGINT the process group (roslaunch / roscore shut their children down), then kill."""
-    if proc.poll() is None:
-        try:
-            os.killpg(proc.pid, signal.SIGINT)
-            proc.wait(timeout=timeout)
-        except (ProcessLookupError, subprocess.TimeoutExpired):
-            pass
-    try:
-        os.killpg(proc.pid, signal.SIGKILL)
-    except ProcessLookupError:
-        pass
-    proc.wait(timeout=timeout)
-
 
 @pytest.fixture(scope="module")
 def ros(tmp_path_factory):

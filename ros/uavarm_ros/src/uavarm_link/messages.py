@@ -8,19 +8,12 @@ from typing import NamedTuple, Tuple
 from .message_table import FAULTS, REFUSALS, RESET_CAUSES, STATES
 from .message_table import MESSAGES as _TABLE
 
-FORMATS = {"u8": "B", "u16": "H", "i16": "h", "u32": "I", "i32": "i", "f32": "f"}
-
-
 class Message(NamedTuple):
     name: str
     id: int
     direction: str                      # "to_arm" or "to_drone"
     fields: Tuple[Tuple[str, str], ...]
-
-    @property
-    def struct_format(self) -> str:
-        """Little-endian, packed: the id byte, then the fields."""
-        return "<B" + "".join(FORMATS[t] for _, t in self.fields)
+    struct_format: str                  # little-endian, packed: the id byte, then the fields
 
     @property
     def size(self) -> int:
