@@ -119,7 +119,7 @@ def tick_bench_build():
     """bench/tick_bench.c with every application and generated source, for the M4 counter."""
     sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
     incs = [f"-I{d}" for d in (generated.GENERATED, firmware.APP / "Inc")]
-    return m4.build(sources, ["bench_run"], cflags=target.M4_CFLAGS + incs)
+    return m4.build(sources, ["bench_run", "bench_message"], cflags=target.M4_CFLAGS + incs)
 
 
 def whole_tick(m):
@@ -155,6 +155,19 @@ def whole_tick(m):
     print(f"| ratio reference / firmware arithmetic | | {ref_tick / arithmetic:.1f}x | | |")
     print("\nLargest shares of the firmware tick (est. cycles, exclusive):",
           ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:14]))
+    messages = []
+    for which, name, fused in ((1, "drone_attitude", m.estimator.drone_attitude),
+                               (2, "drone_velocity", m.estimator.drone_velocity)):
+        if not fused:
+            continue
+        runs = [gen.call("bench_message", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(which), m4.U32(second)],
+                         ret="int") for second in (0, 1)]
+        if not all(r.ret for r in runs):
+            raise SystemExit(f"tick bench: a {name} message was refused")
+        messages.append(f"{name} {runs[1].cycles - runs[0].cycles}")
+    if messages:
+        print("\nOne drone message fused by the stabiliser (main loop, between ticks; est. cycles): "
+              + ", ".join(messages) + ". Both streams are fresh in the ticks above, as in flight.")
 
 
 def target_size():

@@ -4,7 +4,11 @@
  * of a level board until the arm is parked, engage, ticks until it follows the set position;
  * then n ticks, each one IMU burst (tilting board), the stabiliser, the followed branch's IK,
  * the swept check, servo map, the SYNC_WRITE, one status READ and the parse of its reply
- * (four main-loop passes). The port is a minimal in-memory board.
+ * (four main-loop passes). The port is a minimal in-memory board. The drone's attitude and
+ * velocity streams are kept fresh (as at 50 Hz, when the model fuses them), so each tick
+ * takes the flight path: velocity integrated, no accelerometer correction. Their messages
+ * are handled in the main loop between ticks, not by the tick: bench/run.py measures them
+ * apart.
  *
  * bench/run.py reports (cycles(bench_run(n, 1)) - cycles(bench_run(n, 0))) / n: what a
  * tick adds to the main loop's idle passes.
@@ -167,6 +171,8 @@ static void period(const int32_t *sample, bool request)
     }
     imu_regs[MPU_REG_INT_STATUS] = MPU_INT_DATA_RDY;   /* a new sample, as the chip flags it */
     now += MODEL_TICK_US;
+    app.stab.link.valid = app.stab.vel.valid = app.engaged;   /* in flight: the drone's messages fresh */
+    app.stab.link.accepted_us = app.stab.vel.accepted_us = now - MODEL_TICK_US;
     if (request) app_request_tick(&app);
     app_poll(&app);   /* the tick: IMU, stabiliser, IK, command; SYNC_WRITE out */
     app_poll(&app);   /* SYNC_WRITE sent (no reply) */
@@ -188,4 +194,26 @@ int bench_run(const int32_t *raw, uint32_t n, uint32_t ticks)
      * stabilising path with all of its bus traffic, not a parked arm */
     const uint32_t expected = 1u + (ticks ? n : 0u);
     return ok && app.engaged && app.bus.sync_writes - writes == expected && app.bus.status_reads - reads == expected;
+}
+
+/* The cost of one drone message handled by the stabiliser in the main loop (which 1:
+ * drone_attitude, 2: drone_velocity): after the setup and n ticks, a first message restarts
+ * its stream, two ticks pass, and a second one (second = 1) is fused like every message in
+ * flight, or none (second = 0). bench/run.py takes the difference. */
+int bench_message(const int32_t *raw, uint32_t n, uint32_t which, uint32_t second)
+{
+    static const float v[3] = { 0.5f, -0.2f, 0.0f };
+    int ok = setup();
+    for (uint32_t k = 0; k + 2 < n; ++k) period(raw + 6 * k, true);
+    app.stab.link.valid = app.stab.vel.valid = false;
+    stab_link_status_t first = which == 1 ? stab_drone_attitude(&app.stab, 1, now - 20000u, 0.01f, 0.02f, now)
+                                          : stab_drone_velocity(&app.stab, 1, now - 20000u, v, now);
+    period(raw + 6 * (n - 2), true);
+    period(raw + 6 * (n - 1), true);
+    stab_link_status_t next = STAB_LINK_ACCEPTED;
+    if (second) {
+        next = which == 1 ? stab_drone_attitude(&app.stab, 2, now - 20000u, 0.01f, 0.02f, now)
+                          : stab_drone_velocity(&app.stab, 2, now - 20000u, v, now);
+    }
+    return ok && first == STAB_LINK_ACCEPTED && next == STAB_LINK_ACCEPTED;
 }

@@ -19,7 +19,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo, swept
+from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo, swept, velocity
 from . import approx, board_ioc
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
 
@@ -259,8 +259,20 @@ def estimator_context(m: config.Model):
                           q_c + acc_c + ["innovation_scale"], prefix="g")
     corr, err = quaternion.link_error()
     link = _function([(f"c[{i}]", corr[i]) for i in range(4)] + [(f"err[{i}]", err[i]) for i in range(3)],
-                     QH + (quaternion.LINK_SR, quaternion.LINK_CR, quaternion.LINK_SP, quaternion.LINK_CP, quaternion.LINK_K),
-                     qh_c + ["sr", "cr", "sp", "cp", "k_link"])
+                     QH + (quaternion.LINK_SR, quaternion.LINK_CR, quaternion.LINK_SP, quaternion.LINK_CP)
+                     + quaternion.FC_ERROR + (quaternion.LINK_K,),
+                     qh_c + ["sr", "cr", "sp", "cp"] + [f"fc_error[{i}]" for i in range(3)] + ["k_link"])
+    vec = lambda name: [f"{name}[{i}]" for i in range(3)]
+    vel_predict = _function([(f"const float n{i}", v) for i, v in enumerate(velocity.predict(m))],
+                            velocity.VEL + acc + U + W + (attitude.DT,), vec("v") + acc_c + vec("up") + vec("rate") + ["dt"],
+                            prefix="p")
+    innov_e, innov_turn = velocity.innovation(m)
+    vel_innovation = _function([(f"e[{i}]", v) for i, v in enumerate(innov_e)]
+                               + [(f"turn[{i}]", v) for i, v in enumerate(innov_turn)],
+                               QH + velocity.V_LEVEL + W + velocity.VEL_H,
+                               qh_c + vec("v_level") + vec("rate") + vec("v_hist"), prefix="i")
+    quat_turn = _function([(f"const float r{i}", v) for i, v in enumerate(velocity.turned())], Q + velocity.TURN,
+                          [f"q[{i}]" for i in range(4)] + vec("turn"), prefix="t")
     q_arg = [f"q[{i}]" for i in range(4)]
     left = _function([(f"const float r{i}", v) for i, v in enumerate(quaternion.rotate_left())], Q + quaternion.CORR,
                      q_arg + [f"c[{i}]" for i in range(4)])
@@ -275,6 +287,9 @@ def estimator_context(m: config.Model):
         "quat_gate": quat_gate,
         "quat_link": link,
         "quat_left": left,
+        "vel_predict": vel_predict,
+        "vel_innovation": vel_innovation,
+        "quat_turn": quat_turn,
         "bias_update": bias_up,
         "quat_from_acc": _function([(f"q[{i}]", up_acc[i]) for i in range(4)], acc, acc_c),
         "quat_up": _function([(f"up[{i}]", v) for i, v in enumerate(quaternion.up_of(Q))], Q, [f"q[{i}]" for i in range(4)]),
@@ -372,6 +387,12 @@ def estimator_params(m: config.Model):
         # ticks of history: the longest accepted delay, one more to interpolate, one spare
         "history": int(sp.ceiling(sp.nsimplify(e.link_delay_max, rational=True) * sp.nsimplify(m.sample_rate, rational=True))) + 2,
         "lead_time": float32_literal(e.lead_time),
+        "drone_velocity": int(e.drone_velocity),
+        "vel": {k: float32_literal(v) for k, v in velocity.gains(e.velocity_bandwidth).items()},
+        "link_gain_with_velocity": float32_literal(e.link_gain_with_velocity),
+        "link_bias_gain_with_velocity": float32_literal(e.link_bias_gain_with_velocity),
+        "fc_error_gain": float32_literal(e.fc_error_gain),
+        "fc_error_max": float32_literal(sp.rad(sp.nsimplify(e.fc_error_max_deg, rational=True))),
         # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
         "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)
                                          / sp.nsimplify(max(e.align_accel_gain, 1.0), rational=True))),

@@ -44,8 +44,9 @@
  *     enabled, a usable IMU and no servo tracking fault, and after a frame "enable 0" the supply is off when app_poll() returns;
  *   - a valid frame always reaches the application (its good-frame counter moves) in the
  *     main-loop passes that drain the link input;
- *   - every heartbeat is one valid LLCP frame of a heartbeat message whose floats are all
- *     finite; the commanded joints, the set position and the attitude stay finite;
+ *   - every link write is one valid LLCP frame of a message the board sends, of its size
+ *     (heartbeat, the service streams, pong); every heartbeat's floats are finite; the
+ *     commanded joints, the set position and the attitude stay finite;
  *   - the fill levels of the buffers inside app_t (servo replies, link payload) stay within
  *     them: AddressSanitizer does not see an overrun that stays inside a struct.
  *
@@ -178,20 +179,37 @@ static int hex_digit(uint8_t c)
 
 /* One heartbeat frame as the application wrote it to the link. Decoded here from the LLCP
  * format (llcp.h), independently of the receiver under test in llcp_rx.c. */
-static void check_heartbeat(const uint8_t *buf, size_t n)
+/* What the board may send the drone: its size, or 0 for an id it never sends. */
+static size_t to_drone_size(uint8_t id)
 {
-    uint8_t bytes[1 + MSG_HEARTBEAT_SIZE + 1];   /* length, payload, checksum */
+    switch (id) {
+    case MSG_HEARTBEAT_ID: return MSG_HEARTBEAT_SIZE;
+    case MSG_IMU_RAW_ID: return MSG_IMU_RAW_SIZE;
+    case MSG_SERVO_STATUS_ID: return MSG_SERVO_STATUS_SIZE;
+    case MSG_PONG_ID: return MSG_PONG_SIZE;
+    default: return 0;
+    }
+}
+
+/* Every write to the link is one valid LLCP frame of a device -> drone message of its size
+ * (the service streams and pong besides the heartbeat); a heartbeat's contents are checked. */
+static void check_frame(const uint8_t *buf, size_t n)
+{
+    uint8_t bytes[1 + MSG_HEARTBEAT_SIZE + 1];   /* length, payload, checksum: the largest */
     uint8_t sum = 'b';
-    CHECK(n == LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE) && buf[0] == 'b');
-    for (size_t i = 0; i < sizeof bytes; ++i) {
+    CHECK(n >= LLCP_FRAME_SIZE(1) && n <= LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE) && n % 2u == 1u && buf[0] == 'b');
+    const size_t count = (n - 1u) / 2u;
+    for (size_t i = 0; i < count; ++i) {
         const int hi = hex_digit(buf[1 + 2 * i]), lo = hex_digit(buf[2 + 2 * i]);
         CHECK(hi >= 0 && lo >= 0);
         bytes[i] = (uint8_t)(hi << 4 | lo);
-        if (i + 1 < sizeof bytes) {
+        if (i + 1 < count) {
             sum = (uint8_t)(sum + buf[1 + 2 * i] + buf[2 + 2 * i]);
         }
     }
-    CHECK(bytes[0] == MSG_HEARTBEAT_SIZE && bytes[sizeof bytes - 1] == sum);
+    const size_t len = count - 2u;
+    CHECK(bytes[0] == len && bytes[count - 1] == sum && to_drone_size(bytes[1]) == len);
+    if (bytes[1] != MSG_HEARTBEAT_ID) return;
     msg_heartbeat_t hb;
     CHECK(msg_heartbeat_unpack(bytes + 1, MSG_HEARTBEAT_SIZE, &hb));
     CHECK(isfinite(hb.set_x) && isfinite(hb.set_y) && isfinite(hb.set_z));
@@ -319,8 +337,8 @@ static bool p_link_write(void *ctx, const uint8_t *buf, size_t n)
 {
     (void)ctx;
     CHECK(buf != NULL);
-    check_heartbeat(buf, n);
-    B.heartbeats++;
+    check_frame(buf, n);
+    if (n == LLCP_FRAME_SIZE(MSG_HEARTBEAT_SIZE)) B.heartbeats++;   /* the only message that long */
     return !(B.flags & F_LINK_FULL);
 }
 

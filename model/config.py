@@ -66,7 +66,9 @@ _KEYS_BY_TABLE = {
     "filters.accel": "cutoff order", "filters.gyro": "cutoff order",
     "estimator": "kind complementary_gyro_weight accel_gain bias_gain align_accel_gain align_bias_gain "
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
-                 "link_bias_gain link_delay_min link_delay_max link_timeout lead_time",
+                 "link_bias_gain link_delay_min link_delay_max link_timeout lead_time drone_velocity "
+                 "velocity_bandwidth link_gain_with_velocity link_bias_gain_with_velocity fc_error_gain "
+                 "fc_error_max_deg",
 }
 UNKNOWN_KEYS_NAMED = 5
 KNOWN_KEYS = tuple(f"{table}.{name}" for table, names in _KEYS_BY_TABLE.items() for name in names.split())
@@ -197,6 +199,12 @@ class Estimator:
     link_delay_max: float          # s: older measurements are refused (history length)
     link_timeout: float            # s: without a fresh message, the IMU alone again
     lead_time: float               # s: command ahead along the measured rate (0: off)
+    drone_velocity: bool           # fuse the drone's velocity from the link (model/velocity.py)
+    velocity_bandwidth: float      # rad/s: of its correction
+    link_gain_with_velocity: float      # link_gain while the velocity is fresh too
+    link_bias_gain_with_velocity: float  # link_bias_gain while the velocity is fresh too
+    fc_error_gain: float           # 1/s: the flight controller's error learnt from its disagreement
+    fc_error_max_deg: float        # deg: the clamp of the flight controller's estimated error
 
 
 class _Reader:
@@ -504,6 +512,14 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
         link_delay_max=r.number(k + "link_delay_max", lo=dt, hi=0.5),
         link_timeout=r.number(k + "link_timeout", lo=2 * dt, hi=10.0),
         lead_time=r.number(k + "lead_time", nonnegative=True, hi=0.2),
+        drone_velocity=r.boolean(k + "drone_velocity"),
+        # slower than the drone's messages (>= 50 Hz) by far: one message moves little
+        velocity_bandwidth=r.number(k + "velocity_bandwidth", lo=0.01, hi=5.0),
+        link_gain_with_velocity=r.number(k + "link_gain_with_velocity", lo=0.0, hi=1.0),
+        link_bias_gain_with_velocity=r.number(k + "link_bias_gain_with_velocity", nonnegative=True,
+                                              hi=sample_rate / 2),
+        fc_error_gain=r.number(k + "fc_error_gain", nonnegative=True, hi=10.0),
+        fc_error_max_deg=r.number(k + "fc_error_max_deg", nonnegative=True, hi=10.0),
     )
     if est.link_delay_min >= est.link_delay_max:
         raise r.fail(k + "link_delay_min", f"must be less than link_delay_max ({est.link_delay_max}), "
@@ -514,6 +530,9 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
     if est.drone_attitude and est.kind != "quaternion":
         raise r.fail(k + "drone_attitude", "the drone's attitude is fused by the quaternion estimator only: "
                                            "set kind = \"quaternion\" or drone_attitude = false")
+    if est.drone_velocity and est.kind != "quaternion":
+        raise r.fail(k + "drone_velocity", "the drone's velocity is fused by the quaternion estimator only: "
+                                           "set kind = \"quaternion\" or drone_velocity = false")
     return est
 
 

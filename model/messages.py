@@ -50,7 +50,7 @@ MESSAGES = (
             (("seq", "u16"), ("stamp_us", "u32"), ("roll", "f32"), ("pitch", "f32")),
             "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
             "seq counts up by one per message, stamp_us is the drone's clock. Like every frame sent "
-            "to the arm it keeps the link alive; the link estimator (estimator.kind = \"link\") fuses it. "
+            "to the arm it keeps the link alive; fused when estimator.drone_attitude is set. "
             "Signs as REP 103 (x forward, y left, z up): roll positive right side down, pitch positive "
             "nose down (a flight controller's FRD pitch with its sign flipped)"),
     Message("jog", 0x14, "to_arm", (("joint", "u8"), ("mode", "u8"), ("value", "f32")),
@@ -66,6 +66,12 @@ MESSAGES = (
     Message("ping", 0x17, "to_arm", (("seq", "u16"), ("stamp_us", "u32")),
             "answered at once, in any state, with pong (seq and stamp_us given back): the round trip "
             "and the board's time of arrival measure the link's delay (`uavarm calibrate link`)"),
+    Message("drone_velocity", 0x18, "to_arm",
+            (("seq", "u16"), ("stamp_us", "u32"), ("vx", "f32"), ("vy", "f32"), ("vz", "f32")),
+            "the velocity of the drone's centre of rotation from its odometry (m/s, gravity-aligned "
+            "heading-following frame: x forward, y left, z up) at >= 50 Hz; seq and stamp_us as in "
+            "drone_attitude (the same clock). Fused when estimator.drone_velocity is set; refused when "
+            "not finite or any component beyond 50 m/s, stale or not newer than the last"),
     Message("heartbeat", 0x20, "to_drone", (
         ("seq", "u16"), ("uptime_ms", "u32"),
         ("enabled", "u8"), ("engaged", "u8"), ("unreachable", "u8"), ("state", "u8"), ("refusal", "u8"),

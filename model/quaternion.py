@@ -24,7 +24,8 @@ are run-time arguments: the firmware aligns fast while the arm is not engaged (r
 slowly, gated, in flight.
 
 Drone attitude (delayed): the flight controller's roll/pitch at measurement time give the up
-direction u_fc; with q_h this estimator's attitude at that time (from its history), the
+direction u_fc (less the estimate of its slowly varying error when the drone's velocity is
+fused, velocity.py); with q_h this estimator's attitude at that time (from its history), the
 measured up in the level frame is v = R(q_h) u_fc, and the level-frame rotation taking v to
 e_z corrects the attitude at that time. Applied on the left to the current estimate, it
 corrects the current attitude exactly, gyro increments since then included:
@@ -53,6 +54,7 @@ K_P, K_I, INNOVATION = sp.symbols("k_p k_i innovation_scale", real=True)
 GATE = sp.Symbol("gate", real=True)
 LINK_SR, LINK_CR, LINK_SP, LINK_CP = sp.symbols("sr cr sp cp", real=True)
 LINK_K, LINK_KB = sp.symbols("k_link k_bias", real=True)
+FC_ERROR = sp.symbols("fx fy fz", real=True)      # the flight controller's tilt error, base axes, rad
 # |horizontal part of up| is kept above this fraction of |up| (pitch within +-89.9 deg), so
 # the tilt rotation stays finite for any attitude.
 H_MIN = sp.Rational(1, 1000)
@@ -159,8 +161,10 @@ def from_up(u):
 def link_error():
     """(c (4, not normalised), err (3)): the level-frame correction and the body-axes error
     (u_fc x u_h) of the drone's roll/pitch (as sines and cosines) measured when this
-    estimator's attitude was QH."""
-    u_fc = sp.Matrix([-LINK_SP, LINK_SR * LINK_CP, LINK_CR * LINK_CP])
+    estimator's attitude was QH, the estimate of the flight controller's own error (FC_ERROR,
+    a small rotation; velocity.py) removed: u_fc + FC_ERROR x u_fc."""
+    u_raw = sp.Matrix([-LINK_SP, LINK_SR * LINK_CP, LINK_CR * LINK_CP])
+    u_fc = u_raw + sp.Matrix(FC_ERROR).cross(u_raw)
     v = rotate(QH, u_fc)
     c = (1 + v[2], LINK_K * v[1], -LINK_K * v[0], sp.Integer(0))
     return c, list(u_fc.cross(up_of(QH)))

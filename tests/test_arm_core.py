@@ -87,6 +87,13 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     time.sleep(0.1)
     assert sitl.board.app.drone_attitudes > before                      # forwarded while fresh
     assert ("info", f"arm: forwarding the drone's attitude from {c.attitude_topic} to the board") in log.lines
+    before = sitl.board.app.drone_velocities
+    c.velocity((0.5, -0.25, 0.0), None, time.monotonic())
+    time.sleep(0.1)                                                     # several loop steps
+    assert sitl.board.app.drone_velocities == before + 1                # each measurement once
+    c.velocity((0.5, -0.25, 0.0), None, time.monotonic() - 1.0)         # stale when it came
+    time.sleep(0.1)
+    assert sitl.board.app.drone_velocities == before + 1
     # none fresh: the core keeps the engaged arm alive past the board's silence timeout
     time.sleep(2 * config.load().link_silence_timeout / SPEED + 0.5)
     assert statuses[-1]["engaged"] and statuses[-1]["attitude_source"] == "imu"

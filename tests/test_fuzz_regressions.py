@@ -5,7 +5,8 @@ corpus (fuzz/corpus/<harness>/regress-*), so the harness replays them too.
 All from model_loader: uavarm.model.config.load must answer any bytes with a Model or a
 ModelError naming file and key, and the code generator's park check must then end with a
 pass or a ModelError; before the fixes these escaped as other exceptions or ran for minutes.
-The C harnesses found nothing.
+The C harnesses found nothing in the firmware (one app_link finding was the harness's own
+check, docs/fuzzing.md).
 """
 from __future__ import annotations
 

@@ -394,10 +394,10 @@ def test_delayed_drone_attitude_recovers_the_true_attitude(fw, offset_lead, whic
     assert set(run.statuses) == {0}, "every message accepted"
     rms = run.rms_deg(4.0)
     print(f"\ndelay {delay * 1e3:.0f} ms: tilt error RMS {rms:.4f} deg over the last 4 s; "
-          f"estimated delay {run.s.link_delay_us} us")
+          f"estimated delay {run.s.link.delay_us} us")
     assert rms < 0.05
     assert np.degrees(np.abs(np.array(list(run.s.quat.bias))[:2] - np.radians([3.0, -2.0]))).max() < 0.2
-    assert run.s.link_delay_us == round(delay * 1e6), "a constant delay is the model's minimum"
+    assert run.s.link.delay_us == round(delay * 1e6), "a constant delay is the model's minimum"
     imu_only = StabRun(ffi, lib, rocking, accel="thrust", bias=np.radians([3.0, -2.0, 1.0])).run(8.0)
     assert imu_only.rms_deg(4.0) > 5 * rms
 
@@ -431,13 +431,13 @@ def test_bad_messages_are_refused_and_change_nothing(fw):
     ffi, lib = fw
     run = StabRun(ffi, lib, rocking, accel="thrust").run(1.0, msg_rate=50.0, delay=0.01, seq0=100)
     s = run.s
-    last_seq, last_stamp, now = s.link_seq, s.link_stamp_us, run.t_us
+    last_seq, last_stamp, now = s.link.seq, s.link.stamp_us, run.t_us
 
     def status(seq, stamp, roll, pitch, at=None):
-        before = (list(s.quat.q), list(s.quat.bias), s.link_accepted)
+        before = (list(s.quat.q), list(s.quat.bias), s.link.accepted)
         st = lib.stab_drone_attitude(s, seq, stamp & 0xFFFFFFFF, roll, pitch, now if at is None else at)
         if st != 0:
-            assert (list(s.quat.q), list(s.quat.bias), s.link_accepted) == before
+            assert (list(s.quat.q), list(s.quat.bias), s.link.accepted) == before
         return st
 
     nan, inf = float("nan"), float("inf")
@@ -470,7 +470,7 @@ def test_silence_falls_back_to_the_imu_and_a_restarted_sender_is_taken(fw):
     ffi, lib = fw
     run = StabRun(ffi, lib, rocking, accel="thrust").run(1.0, msg_rate=50.0, delay=0.01, seq0=500)
     s = run.s
-    t_last = s.link_accepted_us
+    t_last = s.link.accepted_us
     timeout = round(MODEL.estimator.link_timeout * 1e6)
     assert lib.stab_link_fresh(s, t_last + timeout - 1)
     assert not lib.stab_link_fresh(s, t_last + timeout)
@@ -605,7 +605,7 @@ def test_whatever_the_link_sends_no_servo_sees_a_nan_or_an_unsafe_pose():
         board.run(0.01)
     stab = board.app.stab
     assert all(math.isfinite(v) for v in list(stab.quat.q) + list(stab.quat.bias) + list(stab.up))
-    assert stab.link_accepted > 50 and stab.link_refused > 150
+    assert stab.link.accepted > 50 and stab.link.refused > 150
     syncs = log.syncs()
     assert len(syncs) > 250
     for pkt in syncs:
@@ -615,12 +615,14 @@ def test_whatever_the_link_sends_no_servo_sees_a_nan_or_an_unsafe_pose():
     assert hb["engaged"] == 1 and hb["faults"] & ~(FAULT["out_of_reach"] | FAULT["motion_blocked"]) == 0
 
 
+NOT_FUSED = {"estimator.drone_attitude": False, "estimator.drone_velocity": False}
 CONFIGS = {
-    "complementary": {"estimator.kind": "complementary", "estimator.drone_attitude": False,
-                      "estimator.lead_time": 0.0},
-    "complementary+lead": {"estimator.kind": "complementary", "estimator.drone_attitude": False},
-    "quaternion": {"estimator.drone_attitude": False},
-    "quaternion+link": {},
+    "complementary": {"estimator.kind": "complementary", **NOT_FUSED, "estimator.lead_time": 0.0},
+    "complementary+lead": {"estimator.kind": "complementary", **NOT_FUSED},
+    "quaternion": NOT_FUSED,
+    "quaternion+link": {"estimator.drone_velocity": False},
+    "quaternion+velocity": {"estimator.drone_attitude": False},
+    "quaternion+link+velocity": {},
 }
 
 
@@ -629,7 +631,7 @@ def test_each_configuration_builds_and_stabilises_on_simboard(name):
     """Each selectable estimator configuration, generated and built from the model file with
     its keys edited (uavarm.build.variants), on the SimBoard: bench rocking +-10/8 deg at 0.3 Hz
     (white-noise IMU), engaged 4 s, the drone's attitude sent at 50 Hz (stamped, 15 ms late)
-    when fused. End effector (plain-geometry FK of the shafts) about the centre of rotation
+    when fused, and its velocity (zero: the centre of rotation stays put) likewise. End effector (plain-geometry FK of the shafts) about the centre of rotation
     with the true attitude: RMS < 3 mm; every command passes the plain-geometry checks."""
     import sys
     from pathlib import Path
@@ -656,7 +658,10 @@ def test_each_configuration_builds_and_stabilises_on_simboard(name):
             t_meas = board.time - 0.015
             roll, pitch = motion.attitude(t_meas)
             board.send("drone_attitude", seq=seq, stamp_us=round(t_meas * 1e6) + 777, roll=roll, pitch=pitch)
-            seq += 1
+        if m.estimator.drone_velocity and k % 2 == 0:
+            board.send("drone_velocity", seq=seq, stamp_us=round((board.time - 0.015) * 1e6) + 777, vx=0.0, vy=0.0,
+                       vz=0.0)
+        seq += k % 2 == 0
         if k % 25 == 0:
             board.send("set_position", **dict(zip("xyz", target)))
         board.run(0.01)
@@ -670,4 +675,6 @@ def test_each_configuration_builds_and_stabilises_on_simboard(name):
     assert rms < 3.0
     assert all(pose_ok(sync_goal_speed(p.raw)[0]) for p in log.syncs())
     if m.estimator.drone_attitude:
-        assert board.app.stab.link_accepted > 150
+        assert board.app.stab.link.accepted > 150
+    if m.estimator.drone_velocity:
+        assert board.app.stab.vel.accepted > 150 and board.app.stab.vel.refused == 0

@@ -18,6 +18,7 @@ from scipy.spatial.transform import Rotation
 from conftest import SYSTEM_ENV, catkin_workspace, free_port, require_ros, stop_group
 from oracles import arm_points
 from uavarm.link import llcp, messages
+from uavarm.link.arm_core import level_velocity
 from uavarm.link.ros_node import ATTITUDE_TYPES, roll_pitch
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
@@ -42,6 +43,22 @@ def test_roll_pitch_of_quaternions_match_scipy():
     with pytest.raises(ValueError, match="quaternion"):
         roll_pitch(math.nan, 0.0, 0.0, 1.0)
 
+
+
+def test_level_velocity_matches_scipy():
+    """The odometry's velocity in the gravity-aligned, heading-following frame: from the child
+    (body) frame turned by the attitude, or from the parent frame, then back by the yaw."""
+    rng = np.random.default_rng(8)
+    rot = Rotation.random(500, random_state=rng)
+    v = rng.normal(0.0, 3.0, (500, 3))
+    yaw = rot.as_euler("ZYX")[:, 0]
+    unyaw = Rotation.from_euler("Z", -yaw[:, None])
+    from_body = np.array([level_velocity(tuple(q * 2.0), tuple(u), True) for q, u in zip(rot.as_quat(), v)])
+    from_parent = np.array([level_velocity(tuple(q), tuple(u), False) for q, u in zip(rot.as_quat(), v)])
+    assert np.abs(from_body - unyaw.apply(rot.apply(v))).max() < 1e-9
+    assert np.abs(from_parent - unyaw.apply(v)).max() < 1e-9
+    with pytest.raises(ValueError, match="quaternion"):
+        level_velocity((0.0, 0.0, 0.0, 0.0), (1.0, 0.0, 0.0), True)
 
 
 def test_the_sign_conventions_written_in_the_docs_hold():
@@ -113,6 +130,7 @@ class Tap:
         self.decoder = llcp.Decoder(gap=0.1, expected_len=lambda i: messages.BY_ID[i].size
                                     if i in messages.BY_ID else -1)
         self.attitudes = []                           # (time.monotonic(), fields)
+        self.velocities = []
         receive = board.send_bytes
 
         def send_bytes(data):
@@ -120,6 +138,8 @@ class Tap:
                 name, fields = messages.decode(payload)
                 if name == "drone_attitude":
                     self.attitudes.append((time.monotonic(), fields))
+                elif name == "drone_velocity":
+                    self.velocities.append((time.monotonic(), fields))
             receive(data)
         board.send_bytes = send_bytes
 
@@ -335,6 +355,8 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
     odom = Odometry()
     odom.pose.pose.orientation.x, odom.pose.pose.orientation.y = x, y
     odom.pose.pose.orientation.z, odom.pose.pose.orientation.w = z, w
+    body_velocity = (1.5, -0.5, 0.25)                    # the twist, in the child (body) frame
+    odom.twist.twist.linear.x, odom.twist.twist.linear.y, odom.twist.twist.linear.z = body_velocity
     publishing = threading.Event()
     publishing.set()
 
@@ -370,6 +392,13 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
     assert np.abs(rolls - roll).max() < 1e-6 and np.abs(pitches - pitch).max() < 1e-6
     seqs = np.array([f["seq"] for f in window])
     assert np.all(np.diff(seqs) % 65536 == 1), "attitude frames lost or reordered"
+    # the velocity: each odometry message once, in the heading-following frame (scipy: the
+    # body velocity turned by the attitude, then back by the yaw)
+    level = Rotation.from_euler("Z", -yaw).apply(Rotation.from_euler("ZYX", [yaw, pitch, roll]).apply(body_velocity))
+    vels = np.array([[f["vx"], f["vy"], f["vz"]] for _, f in arm.tap.velocities])
+    assert len(vels) > 50 and np.abs(vels - level).max() < 1e-5, (len(vels), vels[:3], level)
+    stamps = np.array([f["stamp_us"] for _, f in arm.tap.velocities])
+    assert np.all(np.diff(stamps) % 2 ** 32 > 0), "a velocity forwarded twice"
 
     # the drone stops sending: the board parks after link.silence_timeout, the node reports it
     status = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)

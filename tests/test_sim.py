@@ -72,7 +72,7 @@ def test_a_perfectly_compensated_tilt_scores_zero():
 
 
 def test_link_attitude_messages_rate_delay_sequence_and_error():
-    p = scenarios.LinkParams(rate_hz=80.0, delay_ms=20.0, jitter_ms=5.0, noise_deg=0.2, bias_deg=0.3)
+    p = scenarios.LinkParams(rate_hz=80.0, delay_ms=20.0, jitter_ms=5.0, noise_deg=0.2, slow_deg=0.0, bias_deg=0.3)
     f = drone.hover(30.0, np.random.default_rng(2))
     link = closed_loop.LinkAttitude(p, f, np.random.default_rng(3))
     msgs, arrivals = [], []
@@ -92,6 +92,36 @@ def test_link_attitude_messages_rate_delay_sequence_and_error():
     err = np.degrees(np.array([[m["roll"], m["pitch"]] for m in msgs]) - np.c_[f.roll[idx], f.pitch[idx]])
     assert np.all(np.abs(err.mean(axis=0)) <= 0.3 + 0.02)
     assert err.std(axis=0) == pytest.approx([0.2, 0.2], rel=0.15)
+
+
+def test_the_slow_error_is_a_first_order_markov_process():
+    """SlowError: stationary RMS sigma, and the correlation e^(-lag / tau) at any lag (the
+    process's definition), checked over many correlation times."""
+    rng = np.random.default_rng(5)
+    slow = closed_loop.SlowError(0.3, 2.0, 2, rng)
+    x = np.array([slow.step(0.02) for _ in range(200_000)])     # 4000 s, 2000 correlation times
+    assert x.std(axis=0) == pytest.approx([0.3, 0.3], rel=0.05)
+    for lag_s in (0.5, 2.0, 4.0):
+        k = round(lag_s / 0.02)
+        r = np.mean([np.corrcoef(x[:-k, i], x[k:, i])[0, 1] for i in range(2)])
+        assert r == pytest.approx(math.exp(-lag_s / 2.0), abs=0.04), lag_s
+
+
+def test_link_velocity_messages_carry_the_flights_velocity():
+    """The flight's velocity is its acceleration integrated, which the position controller's
+    own position confirms (finite differences of pos); the messages add their errors."""
+    f = drone.hover(30.0, np.random.default_rng(2))
+    v_pos = np.gradient(f.pos, f.t, axis=0)
+    assert np.abs(f.vel - v_pos)[5:-5].max() < 0.01
+    p = scenarios.VelocityParams(rate_hz=50.0, delay_ms=10.0, jitter_ms=2.0, noise_mps=0.05, slow_mps=0.0)
+    link = closed_loop.LinkVelocity(p, f, np.random.default_rng(3))
+    msgs = []
+    while link.next_time < 29.0:
+        msgs.append(link.pop())
+    assert np.all((np.diff([m["seq"] for m in msgs]) % 65536) == 1)
+    idx = np.round(np.arange(1, len(msgs) + 1) / 50.0 * drone.RATE).astype(int)
+    err = np.array([[m["vx"], m["vy"], m["vz"]] for m in msgs]) - f.vel[idx]
+    assert err.std(axis=0) == pytest.approx([0.05] * 3, rel=0.15) and np.abs(err.mean(axis=0)).max() < 0.01
 
 
 # ---------------------------------------------------------------- variants
@@ -211,7 +241,8 @@ def test_the_link_attitude_reaches_the_firmware():
     st = sim.Settings(seconds=2.0, settle=1.0, preflight=1.0, drone_attitude=True)
     run = sim.simulate(s, variants.build({}), settings=st)
     sent = run.link_messages
-    assert sent == pytest.approx((st.preflight + st.engage_at + st.settle + st.seconds) * s.link.rate_hz, abs=5)
+    rates = s.link.rate_hz + s.velocity.rate_hz            # the committed model fuses both
+    assert sent == pytest.approx((st.preflight + st.engage_at + st.settle + st.seconds) * rates, abs=5)
     # every frame the drone sent was taken as a good frame (the keep-alives and commands too)
     assert run.last_heartbeat["link_frames_ok"] >= sent - 60
 

@@ -11,7 +11,7 @@ import pytest
 
 from uavarm import cli
 from uavarm.model import config
-from uavarm.sim import scenarios, report as sim_report, workspace
+from uavarm.sim import scenarios, report as sim_report, sweep, workspace
 
 
 def test_sim_prints_the_table_and_writes_the_plots(tmp_path, capsys):
@@ -39,8 +39,9 @@ def test_sim_refuses_bad_input_with_a_reason(argv, msg, capsys):
 
 
 def test_a_key_the_estimator_does_not_read_is_refused(capsys):
-    """The committed model's estimator is the quaternion one with the drone's attitude."""
-    assert config.load().estimator.kind == "quaternion" and config.load().estimator.drone_attitude
+    """The committed model's estimator is the quaternion one with the drone's attitude and velocity."""
+    est = config.load().estimator
+    assert est.kind == "quaternion" and est.drone_attitude and est.drone_velocity
     assert cli.main(["sim", "bench", "--set", "estimator.complementary_gyro_weight=0.98", "--plots", ""]) == 2
     err = capsys.readouterr().err
     assert "estimator.complementary_gyro_weight: not used by the quaternion estimator" in err
@@ -50,6 +51,15 @@ def test_a_key_the_estimator_does_not_read_is_refused(capsys):
     assert cli.main(["sim", "bench", "--estimator", "complementary", "--set", "estimator.accel_gain=0.2",
                      "--plots", ""]) == 2
     assert "estimator.accel_gain: not used by the complementary estimator" in capsys.readouterr().err
+    assert cli.main(["sim", "bench", "--estimator", "link", "--set", "estimator.velocity_bandwidth=0.3",
+                     "--plots", ""]) == 2
+    assert "estimator.velocity_bandwidth: not used without the drone's velocity" in capsys.readouterr().err
+    assert cli.main(["sim", "bench", "--estimator", "imu-velocity", "--set", "estimator.fc_error_gain=0.3",
+                     "--plots", ""]) == 2
+    assert "estimator.fc_error_gain: used only with both" in capsys.readouterr().err
+    assert cli.main(["sim", "bench", "--estimator", "quaternion", "--set", "estimator.link_timeout=0.2",
+                     "--plots", ""]) == 2
+    assert "estimator.link_timeout: not used without the drone's attitude or velocity" in capsys.readouterr().err
 
 
 def estimates(variant, seconds=3.0):
@@ -204,3 +214,26 @@ def test_report_writes_the_markdown_table(tmp_path):
     text = (tmp_path / "report.md").read_text()
     assert "| bench tilting | model |" in text and "| hover in gusty wind | model |" in text
     assert len(list((tmp_path / "plots").glob("*.png"))) == 4
+
+
+def test_a_sweep_runs_every_combination_best_first(tmp_path, capsys):
+    out = tmp_path / "sweep.md"
+    rc = sweep.main(["--estimator", "complementary", "--vary", "estimator.complementary_gyro_weight=0.5,0.98",
+                     "--scenarios", "bench", "--seeds", "1", "--seconds", "1", "--jobs", "1", "--out", str(out)])
+    assert rc == 0
+    rows = [l for l in capsys.readouterr().out.splitlines() if l.startswith("| estimator.")]
+    assert len(rows) == 2
+    worst = [float(r.strip("| ").split(" | ")[-1]) for r in rows]
+    assert worst == sorted(worst)                                     # best first
+    assert "Command: `python -m uavarm.sim.sweep" in out.read_text()
+
+
+@pytest.mark.parametrize("argv, msg", [
+    (["--vary", "estimator.lead_time"], "expected KEY=V1,V2"),
+    (["--vary", "estimator.nope=1,2"], "estimator.nope: no such key"),
+    (["--vary", "estimator.lead_time=0.04,5"], "lead_time"),
+    (["--vary", "estimator.lead_time=0.04", "--scenarios", "nowhere.toml"], "not a built-in scenario"),
+])
+def test_a_sweep_refuses_bad_input_before_any_run(argv, msg, capsys):
+    assert sweep.main(argv) == 2
+    assert msg in capsys.readouterr().err

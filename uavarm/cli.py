@@ -233,7 +233,8 @@ def parser() -> argparse.ArgumentParser:
     sm.add_argument("--show", action="store_true",
                     help="print the scenario as a scenario file (with --imu applied) and run nothing")
     sm.add_argument("--estimator", default=None,
-                    help="estimator preset: complementary, quaternion, link (default: the model file as it is)")
+                    help="estimator preset: complementary, quaternion, imu-velocity, link, link-velocity "
+                         "(default: the model file as it is)")
     sm.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                     help="edit a model key for this run, e.g. estimator.accel_gain=0.4 (a key the chosen "
                          "estimator does not use is refused; repeatable; default: none)")
@@ -252,6 +253,9 @@ def parser() -> argparse.ArgumentParser:
                     help="IMU error profile (default: the scenario's)")
     sm.add_argument("--link-attitude", choices=["auto", "on", "off"], default="auto",
                     help="send the drone's attitude over the link (auto: when the firmware fuses it; "
+                         "default: %(default)s)")
+    sm.add_argument("--link-velocity", choices=["auto", "on", "off"], default="auto",
+                    help="send the drone's velocity over the link (auto: when the firmware fuses it; "
                          "default: %(default)s)")
     sm.add_argument("--poll-us", type=_integer(10), default=250,
                     help="simulated main-loop period, microseconds (default: %(default)s)")

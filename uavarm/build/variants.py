@@ -23,9 +23,12 @@ SIM_BUILD = cbuild.ROOT / "build" / "sim"
 
 # Estimator presets of `uavarm sim --estimator`: the model keys each one sets.
 PRESETS: dict[str, dict[str, object]] = {
-    "complementary": {"estimator.kind": "complementary", "estimator.drone_attitude": False},
-    "quaternion": {"estimator.kind": "quaternion", "estimator.drone_attitude": False},
-    "link": {"estimator.kind": "quaternion", "estimator.drone_attitude": True},
+    "complementary": {"estimator.kind": "complementary", "estimator.drone_attitude": False,
+                      "estimator.drone_velocity": False},
+    "quaternion": {"estimator.kind": "quaternion", "estimator.drone_attitude": False, "estimator.drone_velocity": False},
+    "link": {"estimator.kind": "quaternion", "estimator.drone_attitude": True, "estimator.drone_velocity": False},
+    "link-velocity": {"estimator.kind": "quaternion", "estimator.drone_attitude": True, "estimator.drone_velocity": True},
+    "imu-velocity": {"estimator.kind": "quaternion", "estimator.drone_attitude": False, "estimator.drone_velocity": True},
 }
 
 
@@ -36,8 +39,11 @@ COMPLEMENTARY_ONLY = ("estimator.complementary_gyro_weight", "filters.gyro.cutof
 QUATERNION_ONLY = ("estimator.accel_gain", "estimator.bias_gain", "estimator.align_accel_gain",
                    "estimator.align_bias_gain", "estimator.accel_reject_g", "estimator.accel_reject_deg",
                    "estimator.gyro_bias_max_dps")
-LINK_ONLY = ("estimator.link_gain", "estimator.link_bias_gain", "estimator.link_delay_min",
-             "estimator.link_delay_max", "estimator.link_timeout")
+LINK_ONLY = ("estimator.link_gain", "estimator.link_bias_gain")
+STREAMS_ONLY = ("estimator.link_delay_min", "estimator.link_delay_max", "estimator.link_timeout")
+VELOCITY_ONLY = ("estimator.velocity_bandwidth",)
+LINK_AND_VELOCITY_ONLY = ("estimator.link_gain_with_velocity", "estimator.link_bias_gain_with_velocity",
+                          "estimator.fc_error_gain", "estimator.fc_error_max_deg")
 
 
 class VariantError(ValueError):
@@ -56,6 +62,14 @@ def unused(keys, estimator: config.Estimator) -> list[str]:
                        f"--estimator quaternion or link)")
         elif key in LINK_ONLY and not estimator.drone_attitude:
             out.append(f"{key}: not used without the drone's attitude over the link (--estimator link)")
+        elif key in STREAMS_ONLY and not (estimator.drone_attitude or estimator.drone_velocity):
+            out.append(f"{key}: not used without the drone's attitude or velocity over the link "
+                       f"(--estimator link, link-velocity or imu-velocity)")
+        elif key in VELOCITY_ONLY and not estimator.drone_velocity:
+            out.append(f"{key}: not used without the drone's velocity over the link (--estimator imu-velocity)")
+        elif key in LINK_AND_VELOCITY_ONLY and not (estimator.drone_attitude and estimator.drone_velocity):
+            out.append(f"{key}: used only with both the drone's attitude and velocity over the link "
+                       f"(--estimator link-velocity)")
     return out
 
 

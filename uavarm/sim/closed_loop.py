@@ -3,8 +3,8 @@
 Everything reaches the firmware as on the hardware: IMU register bytes (uavarm.sim.imu_model
 through uavarm.sim.mpu6050_sim), servo-bus bytes (uavarm.sim.ax12_sim with a small-signal lag and
 the compliance dead band), link bytes (LLCP: set_position kept alive every 0.25 s and, when
-the firmware fuses it, the drone's attitude at the scenario's rate, delay and error) and
-time. The drone (uavarm.sim.drone) rotates the arm's base about its centre of rotation, at the
+the firmware fuses them, the drone's attitude and velocity at the scenario's rates, delays
+and errors) and time. The drone (uavarm.sim.drone) rotates the arm's base about its centre of rotation, at the
 model's mount offset from it.
 
 Figure of merit: the end effector's error in the gravity-aligned, heading-following frame
@@ -51,6 +51,7 @@ class Settings:
     servo_lag: float | None = None   # s; None: the model file's servo.response_lag
     servo_deadband: bool = True      # the compliance margin: no torque within 1 unit of the goal
     drone_attitude: bool | None = None   # send the link attitude; None: when the firmware fuses it
+    drone_velocity: bool | None = None   # send the link velocity; None: when the firmware fuses it
 
 
 @dataclass
@@ -99,36 +100,51 @@ def fk_function(model):
     return _FK[key]
 
 
-def fuses_drone_attitude(model) -> bool:
+def fuses(model, key: str) -> bool:
+    """Does the model's firmware fuse estimator.<key> (drone_attitude, drone_velocity)?"""
     est = tomllib.loads(model.path.read_text()).get("estimator", {})
-    return bool(est.get("drone_attitude", False))
+    return bool(est.get(key, False))
 
 
-class LinkAttitude:
-    """The drone's computer forwarding its flight controller's attitude: measured at rate_hz
-    with a constant bias and white noise, stamped in the drone's clock, delivered after a
-    jittered delay, in order (a serial link does not reorder)."""
+class SlowError:
+    """A first-order Gauss-Markov error per axis: RMS sigma, correlation time tau (s), started
+    from its stationary distribution."""
 
-    def __init__(self, p: scenarios.LinkParams, flight: drone.Flight, rng: np.random.Generator):
+    def __init__(self, sigma: float, tau: float, axes: int, rng: np.random.Generator):
+        self.sigma, self.tau, self.rng = sigma, tau, rng
+        self.value = rng.standard_normal(axes) * sigma
+
+    def step(self, dt: float) -> np.ndarray:
+        a = math.exp(-dt / self.tau)
+        self.value = a * self.value + math.sqrt(1 - a * a) * self.sigma * self.rng.standard_normal(len(self.value))
+        return self.value
+
+
+class DroneStream:
+    """Messages of the drone's computer: measured at rate_hz, stamped in the drone's clock,
+    delivered after a jittered delay, in order (a serial link does not reorder). Subclasses
+    say what is measured (`measure(i)`, the flight's sample index)."""
+
+    def __init__(self, p, flight: drone.Flight, rng: np.random.Generator):
         self.p = p
         self.flight = flight
         self.rng = rng
-        self.bias = np.radians(rng.uniform(-1, 1, 2) * p.bias_deg)
         self.clock_offset_us = int(rng.integers(0, 2 ** 32))
         self.seq = int(rng.integers(0, 2 ** 16))
         self.k = 1
         self.last_arrival = 0.0
         self._next = self._schedule()
 
+    def measure(self, i: int) -> dict:
+        raise NotImplementedError
+
     def _schedule(self):
         t_meas = self.k / self.p.rate_hz
         delay = (self.p.delay_ms + self.rng.uniform(-1, 1) * self.p.jitter_ms) / 1000.0
         arrival = max(t_meas + delay, self.last_arrival)
-        i = min(round(t_meas * drone.RATE), len(self.flight.t) - 1)
-        att = np.array([self.flight.roll[i], self.flight.pitch[i]]) + self.bias \
-            + self.rng.standard_normal(2) * math.radians(self.p.noise_deg)
+        values = self.measure(min(round(t_meas * drone.RATE), len(self.flight.t) - 1))
         stamp = (self.clock_offset_us + round(t_meas * US)) & 0xFFFFFFFF
-        return arrival, dict(seq=self.seq, stamp_us=stamp, roll=float(att[0]), pitch=float(att[1]))
+        return arrival, dict(seq=self.seq, stamp_us=stamp, **values)
 
     @property
     def next_time(self) -> float:
@@ -141,6 +157,34 @@ class LinkAttitude:
         self.seq = (self.seq + 1) & 0xFFFF
         self._next = self._schedule()
         return msg
+
+
+class LinkAttitude(DroneStream):
+    """The flight controller's roll and pitch: truth plus a constant, a slowly varying and a
+    white error per axis."""
+
+    def __init__(self, p: scenarios.LinkParams, flight: drone.Flight, rng: np.random.Generator):
+        self.bias = np.radians(rng.uniform(-1, 1, 2) * p.bias_deg)
+        self.slow = SlowError(math.radians(p.slow_deg), p.slow_tau_s, 2, rng)
+        super().__init__(p, flight, rng)
+
+    def measure(self, i):
+        att = np.array([self.flight.roll[i], self.flight.pitch[i]]) + self.bias \
+            + self.slow.step(1.0 / self.p.rate_hz) + self.rng.standard_normal(2) * math.radians(self.p.noise_deg)
+        return dict(roll=float(att[0]), pitch=float(att[1]))
+
+
+class LinkVelocity(DroneStream):
+    """The odometry's velocity of the centre of rotation (level, heading-following frame):
+    truth plus a slowly varying and a white error per axis."""
+
+    def __init__(self, p: scenarios.VelocityParams, flight: drone.Flight, rng: np.random.Generator):
+        self.slow = SlowError(p.slow_mps, p.slow_tau_s, 3, rng)
+        super().__init__(p, flight, rng)
+
+    def measure(self, i):
+        v = self.flight.vel[i] + self.slow.step(1.0 / self.p.rate_hz) + self.rng.standard_normal(3) * self.p.noise_mps
+        return dict(vx=float(v[0]), vy=float(v[1]), vz=float(v[2]))
 
 
 def make_servos(model, lag: float, deadband: bool):
@@ -173,8 +217,13 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     board = SimBoard(model, servos=make_servos(model, lag, st.servo_deadband), motion=motion,
                      poll_us=st.poll_us, lib=(variant.ffi, variant.lib), record=False, sensor=sensor)
     board.bus.lazy = True                   # servos stepped at bus traffic; sync() before reading them
-    send_attitude = fuses_drone_attitude(model) if st.drone_attitude is None else st.drone_attitude
-    link = LinkAttitude(scenario.link, flight, rng) if send_attitude else None
+    send_attitude = fuses(model, "drone_attitude") if st.drone_attitude is None else st.drone_attitude
+    send_velocity = fuses(model, "drone_velocity") if st.drone_velocity is None else st.drone_velocity
+    streams = []   # (message name, stream)
+    if send_attitude:
+        streams.append(("drone_attitude", LinkAttitude(scenario.link, flight, rng)))
+    if send_velocity:
+        streams.append(("drone_velocity", LinkVelocity(scenario.velocity, flight, np.random.default_rng([seed, 4]))))
     ffi, lib = variant.ffi, variant.lib
     stab = ffi.addressof(board.app, "stab")
     roll_p, pitch_p = ffi.new("float *"), ffi.new("float *")
@@ -198,8 +247,7 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
         events = [end_us, next_rec]
         if engaged or board.now_us < engage_us:
             events.append(next_alive if engaged else engage_us)
-        if link is not None:
-            events.append(round(link.next_time * US))
+        events += [round(stream.next_time * US) for _, stream in streams]
         t_next = max(min(events), board.now_us + 1)
         board.run_until_us(t_next)
         now = board.now_us
@@ -211,9 +259,10 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
         elif engaged and now >= next_alive:
             board.send("set_position", **target)
             next_alive += round(KEEP_ALIVE_S * US)
-        while link is not None and link.next_time * US <= now:
-            board.send("drone_attitude", **link.pop())
-            n_link += 1
+        for name, stream in streams:
+            while stream.next_time * US <= now:
+                board.send(name, **stream.pop())
+                n_link += 1
         if now >= next_rec:
             next_rec += tick_us
             lib.stab_attitude(stab, roll_p, pitch_p)

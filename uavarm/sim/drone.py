@@ -54,6 +54,7 @@ class Flight:
     pos: np.ndarray | None = None    # (n, 3) m, for plots
     omega: np.ndarray | None = None  # (n, 3) body rates, rad/s (derived when None)
     alpha: np.ndarray | None = None  # (n, 3) body angular acceleration, rad/s^2
+    vel: np.ndarray | None = None    # (n, 3) velocity of the centre of rotation, m/s (derived when None)
 
     def __post_init__(self):
         if self.omega is None:
@@ -63,6 +64,10 @@ class Flight:
             self.alpha = np.gradient(self.omega, self.t, axis=0)
         if self.pos is None:
             self.pos = np.zeros((len(self.t), 3))
+        if self.vel is None:   # the acceleration integrated from rest: what the IMU's force implies
+            dt = np.diff(self.t)[:, None]
+            steps = 0.5 * (self.acc[1:] + self.acc[:-1]) * dt
+            self.vel = np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
 
     @property
     def seconds(self) -> float:

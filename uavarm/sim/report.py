@@ -19,7 +19,7 @@ from ..build import generated, variants
 from . import closed_loop, scenarios
 
 REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
-REPORT_ESTIMATORS = ("complementary", "quaternion", "link")
+REPORT_ESTIMATORS = ("complementary", "quaternion", "imu-velocity", "link", "link-velocity")
 REPORT_SEEDS = 3
 REPORT_SECONDS = 60.0
 
@@ -246,7 +246,8 @@ def sim_command(args) -> int:
     settings = replace(closed_loop.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
                        preflight=args.preflight,
                        servo_lag=None if args.servo_lag_ms is None else args.servo_lag_ms / 1000,
-                       drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude])
+                       drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude],
+                       drone_velocity={"auto": None, "on": True, "off": False}[args.link_velocity])
     label = label_of(args.estimator, args.sets)
     jobs = [(scenario, changes, label, seed, settings) for seed in range(args.seed, args.seed + args.seeds)]
     try:
@@ -261,7 +262,7 @@ def sim_command(args) -> int:
         rows.append(summarise([r for r, _ in results], sum(w for _, w in results)))
         rows[-1].label = f"{label} (all {len(results)} seeds)"
     print(f"scenario {scenario.name} ({args.scenario}), IMU {scenario.imu_profile}, "
-          f"link attitude {'sent' if results[0][0].link_messages else 'not sent'}, servo lag "
+          f"drone messages over the link: {results[0][0].link_messages or 'none'}, servo lag "
           f"{closed_loop.servo_lag_of(settings, variants.build(changes).model) * 1e3:.1f} ms; "
           f"scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")

@@ -10,12 +10,21 @@ prints them):
     [imu]
     profile = "calibrated"      # uavarm.sim.imu_model.PROFILES
     vibration = true            # propeller tones (default: off on the bench, on in flight)
-    [link]                      # the drone_attitude messages (sent when the firmware fuses them)
-    rate_hz = 100.0             # >= 50
-    delay_ms = 20.0             # USB / serial latency, mean ...
+    [link]                      # drone_attitude: the flight controller's roll/pitch, forwarded
+    rate_hz = 50.0              # >= 50
+    delay_ms = 20.0             # measurement to arrival: the estimator's latency and the link's ...
     jitter_ms = 5.0             # ... +- uniform
-    noise_deg = 0.1             # flight controller's attitude error: white noise RMS ...
-    bias_deg = 0.2              # ... and a constant per axis, uniform +-
+    noise_deg = 0.35            # attitude error per axis: white, RMS ...
+    slow_deg = 0.35             # ... plus a slowly varying part (first-order Markov), RMS ...
+    slow_tau_s = 30.0           # ... with this correlation time
+    bias_deg = 0.0              # ... plus a constant, uniform +-
+    [velocity]                  # drone_velocity: the odometry's velocity, forwarded
+    rate_hz = 50.0
+    delay_ms = 20.0
+    jitter_ms = 5.0
+    noise_mps = 0.05            # velocity error per axis: white, RMS ...
+    slow_mps = 0.05             # ... plus a slowly varying part (first-order Markov), RMS ...
+    slow_tau_s = 30.0           # ... with this correlation time
     [arm]
     target = [60.0, 20.0, -120.0]   # set position, mm, level frame
 
@@ -54,11 +63,25 @@ class ScenarioError(ValueError):
 
 @dataclass(frozen=True)
 class LinkParams:
-    rate_hz: float = 100.0
+    """The flight controller's attitude as it reaches the arm (defaults: docs/simulator.md)."""
+    rate_hz: float = 50.0
     delay_ms: float = 20.0
     jitter_ms: float = 5.0
-    noise_deg: float = 0.1
-    bias_deg: float = 0.2
+    noise_deg: float = 0.35
+    slow_deg: float = 0.35
+    slow_tau_s: float = 30.0
+    bias_deg: float = 0.0
+
+
+@dataclass(frozen=True)
+class VelocityParams:
+    """The drone's odometry velocity as it reaches the arm (defaults: docs/simulator.md)."""
+    rate_hz: float = 50.0
+    delay_ms: float = 20.0
+    jitter_ms: float = 5.0
+    noise_mps: float = 0.05
+    slow_mps: float = 0.05
+    slow_tau_s: float = 30.0
 
 
 @dataclass(frozen=True)
@@ -69,6 +92,7 @@ class Scenario:
     imu_profile: str = "calibrated"
     vibration: bool | None = None
     link: LinkParams = LinkParams()
+    velocity: VelocityParams = VelocityParams()
     target: tuple[float, float, float] = DEFAULT_TARGET
     base_dir: Path | None = None            # where a replay's csv is looked up
 
@@ -126,9 +150,10 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{where}: not valid TOML: {exc}") from None
-    unknown = set(data) - {"name", "kind", "motion", "imu", "link", "arm"}
+    unknown = set(data) - {"name", "kind", "motion", "imu", "link", "velocity", "arm"}
     if unknown:
-        raise fail(sorted(unknown)[0], "unknown key (expected name, kind, [motion], [imu], [link], [arm])")
+        raise fail(sorted(unknown)[0], "unknown key (expected name, kind, [motion], [imu], [link], [velocity], "
+                                       "[arm])")
     kind = data.get("kind")
     if kind not in (*KINDS, "replay"):
         raise fail("kind", f"must be one of {', '.join((*KINDS, 'replay'))}, got {kind!r}")
@@ -146,7 +171,7 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
             raise fail(key, f"expected a finite number, got {value!r}")
         if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise fail(key, f"must be within [{lo}, {hi}], got {value}")
+            raise fail(key, (f"must be >= {lo}" if hi is None else f"must be within [{lo}, {hi}]") + f", got {value}")
         return float(value)
 
     motion = dict(table("motion"))
@@ -171,16 +196,23 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
     if vibration is not None and not isinstance(vibration, bool):
         raise fail("imu.vibration", f"expected true or false, got {vibration!r}")
 
-    link_t = table("link")
-    fields = {f.name for f in dataclasses.fields(LinkParams)}
-    for key in link_t:
-        if key not in fields:
-            raise fail(f"link.{key}", f"unknown key (expected {', '.join(sorted(fields))})")
-    link = LinkParams(**{k: number(f"link.{k}", v, lo=0.0) for k, v in link_t.items()})
-    if link.rate_hz < 50.0:
-        raise fail("link.rate_hz", f"the drone's attitude must come at >= 50 Hz, got {link.rate_hz}")
-    if link.jitter_ms > link.delay_ms:
-        raise fail("link.jitter_ms", f"must not exceed delay_ms ({link.delay_ms}), got {link.jitter_ms}")
+    def stream(key, params_class):
+        t = table(key)
+        fields = {f.name for f in dataclasses.fields(params_class)}
+        for name in t:
+            if name not in fields:
+                raise fail(f"{key}.{name}", f"unknown key (expected {', '.join(sorted(fields))})")
+        p = params_class(**{k: number(f"{key}.{k}", v, lo=0.0) for k, v in t.items()})
+        if p.rate_hz < 50.0:
+            raise fail(f"{key}.rate_hz", f"the drone's messages must come at >= 50 Hz, got {p.rate_hz}")
+        if p.jitter_ms > p.delay_ms:
+            raise fail(f"{key}.jitter_ms", f"must not exceed delay_ms ({p.delay_ms}), got {p.jitter_ms}")
+        if p.slow_tau_s <= 0.0:
+            raise fail(f"{key}.slow_tau_s", f"the slow error's correlation time must be positive, got {p.slow_tau_s}")
+        return p
+
+    link = stream("link", LinkParams)
+    velocity = stream("velocity", VelocityParams)
 
     arm = table("arm")
     for key in arm:
@@ -190,7 +222,7 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
     if not isinstance(target, list) or len(target) != 3:
         raise fail("arm.target", f"expected [x, y, z] in mm, got {target!r}")
     target = tuple(number(f"arm.target[{i}]", v) for i, v in enumerate(target))
-    return Scenario(name, kind, motion, profile, vibration, link, target, base_dir)
+    return Scenario(name, kind, motion, profile, vibration, link, velocity, target, base_dir)
 
 
 def dump(s: Scenario) -> str:
@@ -200,8 +232,9 @@ def dump(s: Scenario) -> str:
     lines += ["", "[imu]", f"profile = {toml_value(s.imu_profile)}"]
     if s.vibration is not None:
         lines.append(f"vibration = {toml_value(s.vibration)}")
-    lines += ["", "[link]"] + [f"{f.name} = {toml_value(getattr(s.link, f.name))}"
-                               for f in dataclasses.fields(LinkParams)]
+    for key, params in (("link", s.link), ("velocity", s.velocity)):
+        lines += ["", f"[{key}]"] + [f"{f.name} = {toml_value(getattr(params, f.name))}"
+                                     for f in dataclasses.fields(params)]
     lines += ["", "[arm]", f"target = {toml_value(list(s.target))}", ""]
     return "\n".join(lines)
 

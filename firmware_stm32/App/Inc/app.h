@@ -130,6 +130,7 @@ typedef struct {
     uint8_t reset_cause;           /* set by the board after app_init: why the chip last reset (MSG_RESET_*) */
     uint8_t last_fault;            /* set by the board: the exception that halted the firmware before, 0 none */
     uint32_t drone_attitudes;      /* drone_attitude frames received */
+    uint32_t drone_velocities;     /* drone_velocity frames received */
 } app_t;
 
 void app_init(app_t *app, const port_t *port);

@@ -1,6 +1,6 @@
 /* The stabiliser's arithmetic, one IMU sample at a time: scaled IMU sample -> generated
  * Butterworth filters -> attitude (the model's estimator: complementary, or quaternion with
- * gyro bias and, optionally, the drone's attitude from the link) -> target turned into the
+ * gyro bias and, optionally, the drone's attitude and velocity from the link) -> target turned into the
  * tilted base frame, ahead by the model's lead time and about the drone's centre of rotation.
  * No I/O: app.c feeds it, motion.c turns the point into joints. */
 #ifndef STABILISER_H
@@ -21,15 +21,28 @@ extern "C" {
 #define STAB_HISTORY 32            /* ticks of attitude history, at least the model's link_delay_max */
 #define STAB_DT_MAX_PERIODS 4u     /* the longest time one sample is integrated over, in periods */
 
-/* Why a drone_attitude message was refused (stab_drone_attitude). */
+/* Why a drone_attitude or drone_velocity message was refused (stab_drone_attitude,
+ * stab_drone_velocity). */
 typedef enum {
     STAB_LINK_ACCEPTED = 0,
-    STAB_LINK_OFF = 1,             /* the model does not fuse the drone's attitude */
-    STAB_LINK_NOT_FINITE = 2,      /* roll or pitch NaN, infinite or beyond +-pi, +-pi/2 */
+    STAB_LINK_OFF = 1,             /* the model does not fuse it */
+    STAB_LINK_NOT_FINITE = 2,      /* NaN, infinite or out of range (roll +-pi, pitch +-pi/2, velocity +-50 m/s) */
     STAB_LINK_OUT_OF_ORDER = 3,    /* seq or stamp not newer than the last accepted one */
     STAB_LINK_STALE = 4,           /* measured longer ago than the history (link_delay_max) */
-    STAB_LINK_OPPOSITE = 5         /* up side down from the estimate: no unique correction */
+    STAB_LINK_OPPOSITE = 5         /* attitude up side down from the estimate: no unique correction */
 } stab_link_status_t;
+
+/* One stream of the drone's messages (its attitude or its velocity). */
+typedef struct {
+    bool valid;                    /* a message was accepted since the reset */
+    uint16_t seq;                  /* of the last accepted message */
+    uint32_t stamp_us;             /* its stamp (drone clock) */
+    uint32_t accepted_us;          /* local time it was accepted */
+    uint32_t offset_us;            /* smallest (arrival - stamp) seen: the clocks' offset */
+    uint32_t delay_us;             /* the last accepted message's estimated delay */
+    uint32_t accepted;             /* counters */
+    uint32_t refused;
+} stab_stream_t;
 
 typedef struct {
     filt_accel_t accel_filter[3];
@@ -47,20 +60,18 @@ typedef struct {
     uint16_t still_n;              /* samples in it so far */
     float still_lo[6], still_hi[6];
     float still_sum[6];            /* gyro and accelerometer, IMU axes */
-    /* the quaternion after each sample, and the time of that sample (for the link) */
+    /* the quaternion (and velocity) after each sample, and the time of that sample (for the link) */
     float hist_q[STAB_HISTORY][4];
+    float hist_v[STAB_HISTORY][3];
     uint32_t hist_us[STAB_HISTORY];
     uint8_t hist_next;             /* slot of the next sample */
     uint8_t hist_len;
-    /* drone attitude over the link */
-    bool link_valid;               /* a message was accepted since the reset */
-    uint16_t link_seq;             /* of the last accepted message */
-    uint32_t link_stamp_us;        /* its stamp (drone clock) */
-    uint32_t link_accepted_us;     /* local time it was accepted */
-    uint32_t link_offset_us;       /* smallest (arrival - stamp) seen: the clocks' offset */
-    uint32_t link_delay_us;        /* the last accepted message's estimated delay */
-    uint32_t link_accepted;        /* counters */
-    uint32_t link_refused;
+    stab_stream_t link;            /* the drone's attitude over the link */
+    stab_stream_t vel;             /* the drone's velocity over the link */
+    float velocity[3];             /* the IMU's velocity estimate, base axes, m/s (drone_velocity) */
+    float vel_last[3];             /* the last accepted drone_velocity (level frame, m/s) */
+    float fc_error[3];             /* the flight controller's estimated tilt error, base axes, rad */
+    uint32_t vel_restarts;         /* velocity estimates restarted (first message, or a jump) */
 } stab_t;
 
 void stab_reset(stab_t *s);
@@ -74,8 +85,17 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
  * message is finite, newer than the last and not older than the history. */
 stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_us, float roll, float pitch,
                                        uint32_t now_us);
+/* The drone's velocity (m/s, level heading-following frame, its centre of rotation) from its
+ * odometry, measured at stamp_us, message number seq, arriving at now_us: fused if the model
+ * says so and the message is finite, within +-50 m/s, newer than the last and not older than
+ * the history. The first after a silence, or one more than 1 m/s on an axis from the last one
+ * (an odometry reset), restarts the velocity estimate on it. */
+stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_us, const float v_level[3],
+                                       uint32_t now_us);
 /* Is the drone's attitude fresh (accepted within the model's link_timeout of now_us)? */
 bool stab_link_fresh(const stab_t *s, uint32_t now_us);
+/* Is the drone's velocity fresh (idem)? */
+bool stab_velocity_fresh(const stab_t *s, uint32_t now_us);
 /* The current estimate of the base's roll and pitch (rad), for telemetry and the simulator. */
 void stab_attitude(const stab_t *s, float *roll, float *pitch);
 /* Where target_level (level frame, mm) is in the tilted base frame at the current attitude

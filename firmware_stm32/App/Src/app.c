@@ -304,6 +304,7 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     msg_engage_t engage;
     msg_set_position_t set;
     msg_drone_attitude_t attitude;
+    msg_drone_velocity_t velocity;
     msg_jog_t jog;
     msg_torque_t torque;
     msg_stream_t stream;
@@ -323,6 +324,10 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         app->drone_attitudes++;
         (void)stab_drone_attitude(&app->stab, attitude.seq, attitude.stamp_us, attitude.roll, attitude.pitch,
                                   now_us(app));
+    } else if (msg_drone_velocity_unpack(payload, len, &velocity)) {
+        const float v_level[3] = { velocity.vx, velocity.vy, velocity.vz };
+        app->drone_velocities++;
+        (void)stab_drone_velocity(&app->stab, velocity.seq, velocity.stamp_us, v_level, now_us(app));
     } else if (msg_jog_unpack(payload, len, &jog)) {
         on_jog(app, &jog);
     } else if (msg_torque_unpack(payload, len, &torque)) {

@@ -14,6 +14,9 @@ typedef char stab_history_fits[(MODEL_LINK_HISTORY <= STAB_HISTORY) ? 1 : -1];
  * a drone clock running slower than ours (100 ppm at 50 messages/s). */
 #define LINK_OFFSET_CREEP_US 2u
 
+#define VELOCITY_MAX 50.0f    /* m/s: a larger component is refused */
+#define VELOCITY_JUMP 1.0f    /* m/s: a larger step from one message to the next restarts the velocity estimate */
+
 void stab_reset(stab_t *s)
 {
     memset(s, 0, sizeof *s);
@@ -26,15 +29,26 @@ void stab_reset(stab_t *s)
 static void remember(stab_t *s, uint32_t now_us)
 {
     memcpy(s->hist_q[s->hist_next], s->quat.q, sizeof s->quat.q);
+    if (MODEL_DRONE_VELOCITY) memcpy(s->hist_v[s->hist_next], s->velocity, sizeof s->velocity);
     s->hist_us[s->hist_next] = now_us;
     s->hist_next = (uint8_t)(s->hist_next + 1u < MODEL_LINK_HISTORY ? s->hist_next + 1u : 0u);   /* (no division) */
     if (s->hist_len < MODEL_LINK_HISTORY) s->hist_len++;
 }
 #endif
 
+static bool stream_fresh(const stab_stream_t *st, uint32_t now_us)
+{
+    return st->valid && now_us - st->accepted_us < MODEL_LINK_TIMEOUT_US;
+}
+
 bool stab_link_fresh(const stab_t *s, uint32_t now_us)
 {
-    return MODEL_DRONE_ATTITUDE && s->link_valid && now_us - s->link_accepted_us < MODEL_LINK_TIMEOUT_US;
+    return MODEL_DRONE_ATTITUDE && stream_fresh(&s->link, now_us);
+}
+
+bool stab_velocity_fresh(const stab_t *s, uint32_t now_us)
+{
+    return MODEL_DRONE_VELOCITY && stream_fresh(&s->vel, now_us);
 }
 
 /* The first sample after a reset: filters and attitude at rest on it. Not inlined: the
@@ -120,8 +134,9 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     if (engaged) s->still_n = 0u;   /* a window starts afresh after a flight */
     else bias_at_rest(s, accel_g, gyro_rad_s);
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
-    if (stab_link_fresh(s, now_us)) {
-        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, dt, s->up);   /* the drone's attitude corrects */
+    const bool aided = stab_velocity_fresh(s, now_us);
+    if (stab_link_fresh(s, now_us) || aided) {
+        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, dt, s->up);   /* the drone's messages correct */
     } else if (engaged) {
         est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
                       dt, s->up);
@@ -129,7 +144,9 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
         est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, dt, s->up);
     }
     memcpy(s->rate, s->quat.rate, sizeof s->rate);
-    if (MODEL_DRONE_ATTITUDE) remember(s, now_us);
+    /* the raw specific force: the chip's DLPF is filter enough for an integral */
+    if (aided) est_vel_predict(s->velocity, accel_g, s->up, s->rate, dt);
+    if (MODEL_DRONE_ATTITUDE || MODEL_DRONE_VELOCITY) remember(s, now_us);
 #else
     static const float no_bias[3] = { 0.0f, 0.0f, 0.0f };
     float gyro[3];
@@ -147,9 +164,9 @@ static void normalise4(float q[4])
     for (int i = 0; i < 4; ++i) q[i] *= inv;
 }
 
-/* The estimate's attitude at local time t (interpolated between samples, extrapolated past
- * the last one); false if t is older than the history. */
-static bool attitude_at(const stab_t *s, uint32_t t, float q[4])
+/* The estimate's attitude (and velocity) at local time t: interpolated between samples,
+ * extrapolated past the last one; false if t is older than the history. */
+static bool history_at(const stab_t *s, uint32_t t, float q[4], float v[3])
 {
     unsigned newer = MODEL_LINK_HISTORY;   /* none yet */
     for (unsigned n = 0; n < s->hist_len; ++n) {
@@ -165,11 +182,13 @@ static bool attitude_at(const stab_t *s, uint32_t t, float q[4])
                 q[1] = p[0] * d[1] + p[1] * d[0] + p[2] * d[3] - p[3] * d[2];
                 q[2] = p[0] * d[2] - p[1] * d[3] + p[2] * d[0] + p[3] * d[1];
                 q[3] = p[0] * d[3] + p[1] * d[2] - p[2] * d[1] + p[3] * d[0];
+                memcpy(v, s->hist_v[k], sizeof s->hist_v[k]);
                 normalise4(q);
                 return true;
             }
             const float f = (float)ahead / (float)(s->hist_us[newer] - s->hist_us[k]);
             for (int i = 0; i < 4; ++i) q[i] = s->hist_q[k][i] + f * (s->hist_q[newer][i] - s->hist_q[k][i]);
+            for (int i = 0; i < 3; ++i) v[i] = s->hist_v[k][i] + f * (s->hist_v[newer][i] - s->hist_v[k][i]);
             normalise4(q);
             return true;
         }
@@ -178,53 +197,135 @@ static bool attitude_at(const stab_t *s, uint32_t t, float q[4])
     return false;
 }
 
+/* The timing of a message of stream st: refused if not newer than the last one taken while the
+ * stream is fresh, or delayed beyond the model's link_delay_max. Delay: arrival - stamp is the
+ * clocks' offset plus the delay; its smallest value is the offset plus the link's smallest
+ * delay (from the model). */
+static stab_link_status_t admit(const stab_stream_t *st, bool fresh, uint16_t seq, uint32_t stamp_us,
+                                uint32_t now_us, uint32_t *offset, uint32_t *delay)
+{
+    if (fresh && ((int16_t)(uint16_t)(seq - st->seq) <= 0 || (int32_t)(stamp_us - st->stamp_us) <= 0)) {
+        return STAB_LINK_OUT_OF_ORDER;   /* after a silence a restarted sender is taken again */
+    }
+    const uint32_t arrival = now_us - stamp_us;
+    *offset = fresh ? st->offset_us + LINK_OFFSET_CREEP_US : arrival;
+    if ((int32_t)(arrival - *offset) < 0) *offset = arrival;
+    *delay = arrival - *offset + MODEL_LINK_DELAY_MIN_US;
+    return *delay > MODEL_LINK_DELAY_MAX_US ? STAB_LINK_STALE : STAB_LINK_ACCEPTED;
+}
+
+static void take(stab_stream_t *st, uint16_t seq, uint32_t stamp_us, uint32_t now_us, uint32_t offset, uint32_t delay)
+{
+    st->valid = true;
+    st->seq = seq;
+    st->stamp_us = stamp_us;
+    st->accepted_us = now_us;
+    st->offset_us = offset;
+    st->delay_us = delay;
+    st->accepted++;
+}
+
+static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
+{
+    st->refused++;
+    return why;
+}
+
+/* fc_error += delta, within +-fc_error_max_deg per axis. */
+static void move_fc_error(stab_t *s, const float delta[3])
+{
+    for (int i = 0; i < 3; ++i) {
+        s->fc_error[i] = fminf(MODEL_FC_ERROR_MAX, fmaxf(-MODEL_FC_ERROR_MAX, s->fc_error[i] + delta[i]));
+    }
+}
+
 stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_us, float roll, float pitch,
                                        uint32_t now_us)
 {
-    stab_link_status_t why = STAB_LINK_ACCEPTED;
     const bool fresh = stab_link_fresh(s, now_us);
-    float q_then[4], c[4], err[3];
-    if (!MODEL_DRONE_ATTITUDE || !MODEL_ESTIMATOR_QUATERNION) {
-        why = STAB_LINK_OFF;
-    } else if (!(fabsf(roll) <= 3.1415927f && fabsf(pitch) <= 1.5707964f)) {   /* NaN fails too */
-        why = STAB_LINK_NOT_FINITE;
-    } else if (fresh && ((int16_t)(uint16_t)(seq - s->link_seq) <= 0
-                         || (int32_t)(stamp_us - s->link_stamp_us) <= 0)) {
-        why = STAB_LINK_OUT_OF_ORDER;   /* after a silence a restarted sender is taken again */
+    uint32_t offset = 0u, delay = 0u;
+    float q_then[4], v_then[3], c[4], err[3];
+    if (!MODEL_DRONE_ATTITUDE || !MODEL_ESTIMATOR_QUATERNION) return refuse(&s->link, STAB_LINK_OFF);
+    if (!(fabsf(roll) <= 3.1415927f && fabsf(pitch) <= 1.5707964f)) {   /* NaN fails too */
+        return refuse(&s->link, STAB_LINK_NOT_FINITE);
     }
-    if (why != STAB_LINK_ACCEPTED) {
-        s->link_refused++;
-        return why;
-    }
-    /* Delay: arrival - stamp is the clocks' offset plus the delay; its smallest value is the
-     * offset plus the link's smallest delay (from the model). */
-    const uint32_t arrival = now_us - stamp_us;
-    uint32_t offset = fresh ? s->link_offset_us + LINK_OFFSET_CREEP_US : arrival;
-    if ((int32_t)(arrival - offset) < 0) offset = arrival;
-    const uint32_t delay = arrival - offset + MODEL_LINK_DELAY_MIN_US;
-    if (delay > MODEL_LINK_DELAY_MAX_US || !attitude_at(s, now_us - delay, q_then)) {
-        s->link_refused++;
-        return STAB_LINK_STALE;
-    }
-    est_link_error(q_then, roll, pitch, MODEL_LINK_GAIN, c, err);
+    stab_link_status_t why = admit(&s->link, fresh, seq, stamp_us, now_us, &offset, &delay);
+    if (why == STAB_LINK_ACCEPTED && !history_at(s, now_us - delay, q_then, v_then)) why = STAB_LINK_STALE;
+    if (why != STAB_LINK_ACCEPTED) return refuse(&s->link, why);
+    /* with the velocity fresh too, the drone's attitude corrects with gains of their own (none
+     * by default: velocity and gyro do better) and teaches fc_error what it disagrees by */
+    const bool aided = stab_velocity_fresh(s, now_us);
+    est_link_error(q_then, roll, pitch, s->fc_error, aided ? MODEL_LINK_GAIN_WITH_VELOCITY : MODEL_LINK_GAIN, c, err);
     if (!(c[0] > 1e-6f)) {   /* c[0] = 1 + cos(disagreement): ~180 deg has no rotation axis */
-        s->link_refused++;
-        return STAB_LINK_OPPOSITE;
+        return refuse(&s->link, STAB_LINK_OPPOSITE);
     }
     est_quat_rotate_left(c, s->quat.q);
     /* the history takes the same level-frame correction: the next message compares with it */
     for (unsigned n = 0; n < s->hist_len; ++n) est_quat_rotate_left(c, s->hist_q[n]);
     /* the error left after each correction is (bias error) x (message period) / link_gain, so
      * this moves the bias at link_bias_gain / link_gain per second, whatever the message rate */
-    est_bias_update(s->quat.bias, err, MODEL_LINK_BIAS_GAIN);
+    est_bias_update(s->quat.bias, err, aided ? MODEL_LINK_BIAS_GAIN_WITH_VELOCITY : MODEL_LINK_BIAS_GAIN);
+    if (aided && fresh) {
+        /* err x u_fc is how far the corrected up of the flight controller is off: fc_error
+         * moves by err to close it, at fc_error_gain per second of the drone's time */
+        const float h = fminf((float)(stamp_us - s->link.stamp_us) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+        float learn[3];
+        for (int i = 0; i < 3; ++i) learn[i] = h * MODEL_FC_ERROR_GAIN * err[i];
+        move_fc_error(s, learn);
+    }
     est_quat_up(s->quat.q, s->up);
-    s->link_valid = true;
-    s->link_seq = seq;
-    s->link_stamp_us = stamp_us;
-    s->link_accepted_us = now_us;
-    s->link_offset_us = offset;
-    s->link_delay_us = delay;
-    s->link_accepted++;
+    take(&s->link, seq, stamp_us, now_us, offset, delay);
+    return STAB_LINK_ACCEPTED;
+}
+
+/* The velocity estimate (and its history) moved by k e. */
+static void shift_velocity(stab_t *s, const float e[3], float k)
+{
+    for (int i = 0; i < 3; ++i) s->velocity[i] += k * e[i];
+    for (unsigned n = 0; n < s->hist_len; ++n) {
+        for (int i = 0; i < 3; ++i) s->hist_v[n][i] += k * e[i];
+    }
+}
+
+stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_us, const float v_level[3],
+                                       uint32_t now_us)
+{
+    const bool fresh = stab_velocity_fresh(s, now_us);
+    uint32_t offset = 0u, delay = 0u;
+    float q_then[4], v_then[3], e[3], turn[3];
+    if (!MODEL_DRONE_VELOCITY || !MODEL_ESTIMATOR_QUATERNION) return refuse(&s->vel, STAB_LINK_OFF);
+    for (int i = 0; i < 3; ++i) {
+        if (!(fabsf(v_level[i]) <= VELOCITY_MAX)) return refuse(&s->vel, STAB_LINK_NOT_FINITE);   /* NaN too */
+    }
+    stab_link_status_t why = admit(&s->vel, fresh, seq, stamp_us, now_us, &offset, &delay);
+    if (why == STAB_LINK_ACCEPTED && !history_at(s, now_us - delay, q_then, v_then)) why = STAB_LINK_STALE;
+    if (why != STAB_LINK_ACCEPTED) return refuse(&s->vel, why);
+    est_vel_innovation(q_then, v_level, s->rate, v_then, e, turn);
+    bool jump = false;   /* the odometry's own velocity stepped (a reset or a switch of source) */
+    for (int i = 0; i < 3; ++i) {
+        jump = jump || !(fabsf(v_level[i] - s->vel_last[i]) <= VELOCITY_JUMP);
+        s->vel_last[i] = v_level[i];
+    }
+    if (!fresh || jump) {
+        shift_velocity(s, e, 1.0f);   /* (re)start on the measurement: no tilt from a jump */
+        s->vel_restarts++;
+    } else {
+        /* gains per second, over the drone's time since the previous message */
+        const float h = fminf((float)(stamp_us - s->vel.stamp_us) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+        float d[3];
+        shift_velocity(s, e, h * MODEL_VEL_K_V);
+        for (int i = 0; i < 3; ++i) d[i] = h * MODEL_VEL_K_T * turn[i];
+        est_quat_turn(s->quat.q, d);
+        for (unsigned n = 0; n < s->hist_len; ++n) est_quat_turn(s->hist_q[n], d);
+        est_bias_update(s->quat.bias, turn, h * MODEL_VEL_K_B);
+        if (stab_link_fresh(s, now_us)) {
+            /* the flight controller's error takes the turn too: its next message keeps it */
+            for (int i = 0; i < 3; ++i) d[i] = -d[i];
+            move_fc_error(s, d);
+        }
+        est_quat_up(s->quat.q, s->up);
+    }
+    take(&s->vel, seq, stamp_us, now_us, offset, delay);
     return STAB_LINK_ACCEPTED;
 }
 

@@ -1,5 +1,6 @@
 """What the drone-side node does, without ROS: the port (opened, lost and reopened every
-second), each loop step (the heartbeats in; the drone's attitude, or a keep-alive, out), the
+second), each loop step (the heartbeats in; the drone's attitude and velocity, or a keep-alive,
+out), the
 status a heartbeat gives, and commands answered once a heartbeat confirms them. The ROS 1
 node (ros_node) is an adapter around it: parameters, topics, services, log; a ROS 2 node
 would be another.
@@ -32,6 +33,26 @@ def roll_pitch(x: float, y: float, z: float, w: float) -> Tuple[float, float]:
     roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
     pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
     return roll, pitch
+
+
+def level_velocity(q: Tuple[float, float, float, float], v: Tuple[float, float, float],
+                   in_body: bool) -> Tuple[float, float, float]:
+    """A velocity (m/s) in the gravity-aligned, heading-following frame (the yaw of the
+    quaternion q = (x, y, z, w) removed), from body axes (in_body: nav_msgs/Odometry's twist,
+    in its child frame) or from the parent (world) frame; ValueError for a bad quaternion."""
+    x, y, z, w = q
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (math.isfinite(n) and n > 1e-9):
+        raise ValueError(f"not a rotation quaternion: ({x}, {y}, {z}, {w})")
+    x, y, z, w = x / n, y / n, z / n, w / n
+    vx, vy, vz = v
+    if in_body:   # R(q) v
+        vx, vy, vz = ((1 - 2 * (y * y + z * z)) * vx + 2 * (x * y - w * z) * vy + 2 * (x * z + w * y) * vz,
+                      2 * (x * y + w * z) * vx + (1 - 2 * (x * x + z * z)) * vy + 2 * (y * z - w * x) * vz,
+                      2 * (x * z - w * y) * vx + 2 * (y * z + w * x) * vy + (1 - 2 * (x * x + y * y)) * vz)
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    c, s = math.cos(yaw), math.sin(yaw)
+    return c * vx + s * vy, -s * vx + c * vy, vz
 
 
 def describe(hb: dict) -> str:
@@ -74,6 +95,7 @@ class ArmCore:
         self._reopen_at = 0.0
         self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
         self._attitude = None                     # (roll, pitch, stamp_us or None, received)
+        self._velocity = None                     # ((vx, vy, vz), stamp_us or None, received), until sent
         self.attitude_source = "imu"              # what the last step forwarded: "drone" or "imu"
         self._last_hb = None
         self._last_hb_time = None
@@ -85,6 +107,10 @@ class ArmCore:
     def attitude(self, roll: float, pitch: float, stamp_us: Optional[int], received: float) -> None:
         """The drone's latest attitude (rad), its stamp (us, its clock) and when it came."""
         self._attitude = (roll, pitch, stamp_us, received)
+
+    def velocity(self, v: Tuple[float, float, float], stamp_us: Optional[int], received: float) -> None:
+        """The drone's latest velocity (m/s, heading-following frame), its stamp and when it came."""
+        self._velocity = (v, stamp_us, received)
 
     # ---------------------------------------------------------------- the port
 
@@ -129,6 +155,9 @@ class ArmCore:
             self._report_source("drone" if fresh else "imu")
             if fresh:
                 link.send_attitude(att[0], att[1], att[2])
+            vel, self._velocity = self._velocity, None        # each measurement once
+            if vel is not None and now - vel[2] <= self.attitude_timeout:
+                link.send_velocity(*vel[0], vel[1])
             elif link.engaged:
                 self.log.warn_every(5.0, "arm: engaged but no attitude on the attitude topic for "
                                          f"{self.attitude_timeout} s"

@@ -146,6 +146,7 @@ class ArmLink:
         self.pongs: deque[tuple[dict, float]] = deque(maxlen=10_000)   # (pong, time.monotonic() read)
         self.bytes_received = 0
         self._attitude_seq = 0
+        self._velocity_seq = 0
 
     def close(self) -> None:
         self.serial.close()
@@ -313,6 +314,15 @@ class ArmLink:
         stamp = int(time.monotonic() * 1e6) if stamp_us is None else stamp_us
         self.send("drone_attitude", seq=self._attitude_seq, stamp_us=stamp & 0xFFFFFFFF, roll=roll, pitch=pitch)
         self._attitude_seq = (self._attitude_seq + 1) & 0xFFFF
+
+    def send_velocity(self, vx: float, vy: float, vz: float, stamp_us: int | None = None) -> None:
+        """Forward the drone's velocity (m/s, gravity-aligned heading-following frame, its
+        centre of rotation) from its odometry; call at >= 50 Hz, each measurement once."""
+        if not all(math.isfinite(v) for v in (vx, vy, vz)):
+            raise ValueError(f"velocity must be finite, got ({vx}, {vy}, {vz})")
+        stamp = int(time.monotonic() * 1e6) if stamp_us is None else stamp_us
+        self.send("drone_velocity", seq=self._velocity_seq, stamp_us=stamp & 0xFFFFFFFF, vx=vx, vy=vy, vz=vz)
+        self._velocity_seq = (self._velocity_seq + 1) & 0xFFFF
 
     def ping(self, seq: int) -> float:
         """Send ping `seq` (stamped with this computer's microsecond clock); the time.monotonic()

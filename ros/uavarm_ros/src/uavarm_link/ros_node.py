@@ -20,6 +20,11 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   (default 100, at least 50) while it is fresher than `~attitude_timeout` s. The board counts
   it as keep-alive, and a firmware built with the link estimator fuses it. With no fresh attitude and `~keep_alive` true, an
   engaged arm is kept alive by repeating its set position every `~keep_alive_period` s.
+- the drone's velocity, from the same nav_msgs/Odometry (`~velocity`, default true): the
+  twist's linear part, in the message's child frame as nav_msgs defines it (`~velocity_frame`
+  "child") or in its parent frame ("parent", for a source that publishes it so), turned into
+  the gravity-aligned, heading-following frame with the message's orientation and forwarded
+  once per message with ArmLink.send_velocity; a firmware built with drone_velocity fuses it.
 
 Parameters: `~port` (/dev/ttyACM0), `~baud` (115200), the attitude ones above,
 `~keep_alive` (true), `~keep_alive_period` (0.2 s; the board parks after 1 s of silence),
@@ -44,6 +49,7 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import importlib
+import math
 import os
 import shutil
 import sys
@@ -51,7 +57,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .arm_core import JOINT_NAMES, ArmCore, roll_pitch
+from .arm_core import JOINT_NAMES, ArmCore, level_velocity, roll_pitch
 
 PACKAGE = "uavarm_ros"
 # the ROS package's folder (this file is its src/uavarm_link/ros_node.py): msg/ and srv/
@@ -202,6 +208,11 @@ class ArmNode:
         topic = rospy.get_param("~attitude_topic", DEFAULT_ATTITUDE_TOPIC)
         att_type = rospy.get_param("~attitude_type", "nav_msgs/Odometry")
         att_class, self._orientation = attitude_class(att_type)
+        frame = rospy.get_param("~velocity_frame", "child")
+        if frame not in ("child", "parent"):
+            raise ValueError(f"~velocity_frame must be child or parent, got {frame!r}")
+        self._velocity_in_body = frame == "child"
+        self._velocity = bool(rospy.get_param("~velocity", True)) and att_type == "nav_msgs/Odometry"
         self.core = ArmCore(rospy.get_param("~port", "/dev/ttyACM0"), int(rospy.get_param("~baud", 115200)),
                             RosLog(rospy), self._publish,
                             attitude_timeout=float(rospy.get_param("~attitude_timeout", 0.2)),
@@ -271,7 +282,16 @@ class ArmNode:
             self.rospy.logwarn_throttle(10.0, f"arm: attitude ignored: {exc}")
             return
         stamp = message.header.stamp
-        self.core.attitude(roll, pitch, stamp.to_nsec() // 1000 if not stamp.is_zero() else None, time.monotonic())
+        stamp_us = stamp.to_nsec() // 1000 if not stamp.is_zero() else None
+        now = time.monotonic()
+        self.core.attitude(roll, pitch, stamp_us, now)
+        if self._velocity:
+            lin = message.twist.twist.linear
+            v = level_velocity((q.x, q.y, q.z, q.w), (lin.x, lin.y, lin.z), self._velocity_in_body)
+            if all(math.isfinite(c) for c in v):
+                self.core.velocity(v, stamp_us, now)
+            else:
+                self.rospy.logwarn_throttle(10.0, "arm: velocity ignored: not finite")
 
     def _on_enable(self, req):
         return self._SetBoolResponse(*self.core.enable(bool(req.data)))
