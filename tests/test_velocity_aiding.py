@@ -243,17 +243,20 @@ def accelerating(tilt_deg=12.0, start=2.0, seconds=60.0):
                   lambda s: np.array([float(np.interp(s, t, v)), 0.0, 0.0]))
 
 
-def test_a_still_board_stays_level_under_velocity_noise(imu_velocity):
+@pytest.mark.parametrize("noise, bound", [(0.1, 0.08), (0.3, 0.2)])
+def test_a_still_board_stays_level_under_velocity_noise(imu_velocity, noise, bound):
     """IMU + velocity, engaged, on a still board with a gyro bias of 1 deg/s (what is left
-    after the bias learnt at rest, with margin), the odometry's velocity with 0.1 m/s of white
-    noise per axis: the bias is learnt and the tilt then wanders 0.08 deg RMS at most (0.3 mm
-    at the end effector's 200 mm from the centre of rotation)."""
+    after the bias learnt at rest, with margin), the odometry's velocity with white noise per
+    axis (0.1 m/s, and 0.3: a GNSS velocity without RTK): the bias is learnt, the tilt then
+    wanders within `bound` deg RMS (0.3 and 0.7 mm at the end effector's 200 mm from the
+    centre of rotation), and the noise never passes for an odometry reset (one restart: the
+    first message)."""
     run = Run(imu_velocity, Flight(still, at_rest), gyro_bias=np.radians([1.0, -1.0, 0.5])).run(
-        60.0, velocity_noise=0.1)
-    assert set(run.statuses) == {0}
-    print(f"\nstill, velocity noise 0.1 m/s: tilt error RMS {run.rms(30.0):.4f} deg over the last 30 s")
-    assert run.rms(30.0) < 0.08 and max(run.errors[-3000:]) < 0.25
-    assert np.allclose(np.degrees(list(run.s.quat.bias))[:2], [1.0, -1.0], atol=0.05)
+        60.0, velocity_noise=noise)
+    assert set(run.statuses) == {0} and run.s.vel_restarts == 1
+    print(f"\nstill, velocity noise {noise} m/s: tilt error RMS {run.rms(30.0):.4f} deg over the last 30 s")
+    assert run.rms(30.0) < bound and max(run.errors[-3000:]) < 3 * bound
+    assert np.allclose(np.degrees(list(run.s.quat.bias))[:2], [1.0, -1.0], atol=0.05 * noise / 0.1)
 
 
 def test_velocity_holds_the_tilt_in_accelerated_flight(imu_velocity, fw):
@@ -332,7 +335,7 @@ def test_bad_velocity_messages_are_refused_counted_and_change_nothing(fw):
 def test_silence_a_restart_and_a_jump(imu_velocity):
     """Velocity stops: after link_timeout it is not fresh and the accelerometer corrects again.
     The next message restarts the velocity estimate on itself (no tilt from the gap's drift);
-    so does a jump of more than 1 m/s (an odometry reset)."""
+    so does a step of more than 2 m/s from one message to the next (an odometry reset)."""
     run = Run(imu_velocity, Flight(still, at_rest)).run(5.0)
     s, lib, ffi = run.s, run.lib, run.ffi
     assert s.vel_restarts == 1 and lib.stab_velocity_fresh(s, run.t_us)

@@ -88,7 +88,7 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
 /* The drone's velocity (m/s, level heading-following frame, its centre of rotation) from its
  * odometry, measured at stamp_us, message number seq, arriving at now_us: fused if the model
  * says so and the message is finite, within +-50 m/s, newer than the last and not older than
- * the history. The first after a silence, or one more than 1 m/s on an axis from the last one
+ * the history. The first after a silence, or one more than 2 m/s on an axis from the last one
  * (an odometry reset), restarts the velocity estimate on it. */
 stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_us, const float v_level[3],
                                        uint32_t now_us);

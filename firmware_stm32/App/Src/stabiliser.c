@@ -15,7 +15,10 @@ typedef char stab_history_fits[(MODEL_LINK_HISTORY <= STAB_HISTORY) ? 1 : -1];
 #define LINK_OFFSET_CREEP_US 2u
 
 #define VELOCITY_MAX 50.0f    /* m/s: a larger component is refused */
-#define VELOCITY_JUMP 1.0f    /* m/s: a larger step from one message to the next restarts the velocity estimate */
+/* m/s: a larger step from one message to the next restarts the velocity estimate: no flight
+ * changes its velocity so fast, and an odometry's noise (0.3 m/s white at most) steps that far
+ * once in hours */
+#define VELOCITY_JUMP 2.0f
 
 void stab_reset(stab_t *s)
 {
