@@ -84,6 +84,10 @@ TARGETS = (
                "the_stillness_threshold_is_half_a_degree_per_second", "a_jolt_starts_the_window_again",
                "gyro_bias_is_learnt_at_rest", "a_vibrating_accelerometer_is_not_still",
                "each_second_at_rest_measures_the_bias_again"))),
+    Target("stabiliser.c: the drone's messages", "firmware_stm32/App/Src/stabiliser.c",
+           (("c", "stream_fresh"), ("c", "history_at"), ("c", "admit"), ("c", "take"), ("c", "move_fc_error"),
+            ("c", "stab_drone_attitude"), ("c", "shift_velocity"), ("c", "stab_drone_velocity")),
+           ("tests/test_velocity_aiding.py", "tests/test_quaternion.py")),
 )
 
 # Never run against a mutant: they compare generated/ with the generator's output, which
