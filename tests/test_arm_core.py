@@ -91,6 +91,7 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     c.velocity((0.5, -0.25, 0.0), None, time.monotonic())
     time.sleep(0.1)                                                     # several loop steps
     assert sitl.board.app.drone_velocities == before + 1                # each measurement once
+    assert ("info", f"arm: forwarding the drone's velocity from {c.attitude_topic} to the board") in log.lines
     c.velocity((0.5, -0.25, 0.0), None, time.monotonic() - 1.0)         # stale when it came
     time.sleep(0.1)
     assert sitl.board.app.drone_velocities == before + 1

@@ -324,12 +324,23 @@ def test_bad_velocity_messages_are_refused_counted_and_change_nothing(fw):
     fresh = ffi.new("stab_t *")
     lib.stab_reset(fresh)
     assert lib.stab_drone_velocity(fresh, 1, 1000, ffi.new("float[3]"), now) == lib.STAB_LINK_STALE   # no history
-    assert status(last_seq + 1, last_stamp + 20_000, [0.01, 0.0, 0.0], at=now + 10_000) == lib.STAB_LINK_ACCEPTED
+    assert status(last_seq + 1, last_stamp + 1, [0.01, 0.0, 0.0]) == lib.STAB_LINK_ACCEPTED   # 1 us newer
     off = variants.build({"estimator.drone_velocity": False})
     s_off = off.ffi.new("stab_t *")
     off.lib.stab_reset(s_off)
     assert off.lib.stab_drone_velocity(s_off, 1, 1000, off.ffi.new("float[3]"), now) == off.lib.STAB_LINK_OFF
     assert s_off.vel.refused == 1
+
+
+def test_a_model_without_the_drones_attitude_refuses_it(imu_velocity):
+    ffi, lib = imu_velocity
+    s = ffi.new("stab_t *")
+    lib.stab_reset(s)
+    a, g = ffi.new("float[3]", [0.0, 0.0, 1.0]), ffi.new("float[3]")
+    for k in range(5):
+        lib.stab_sample(s, a, g, 1_000_000 + 10_000 * k, True)
+    assert lib.stab_drone_attitude(s, 1, 1000, 0.1, 0.0, 1_040_000) == lib.STAB_LINK_OFF
+    assert s.link.refused == 1 and s.link.accepted == 0 and list(s.up) == [0.0, 0.0, 1.0]
 
 
 def test_silence_a_restart_and_a_jump(imu_velocity):

@@ -96,6 +96,7 @@ class ArmCore:
         self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
         self._attitude = None                     # (roll, pitch, stamp_us or None, received)
         self._velocity = None                     # ((vx, vy, vz), stamp_us or None, received), until sent
+        self._velocity_forwarded = False          # logged once
         self.attitude_source = "imu"              # what the last step forwarded: "drone" or "imu"
         self._last_hb = None
         self._last_hb_time = None
@@ -158,6 +159,9 @@ class ArmCore:
             vel, self._velocity = self._velocity, None        # each measurement once
             if vel is not None and now - vel[2] <= self.attitude_timeout:
                 link.send_velocity(*vel[0], vel[1])
+                if not self._velocity_forwarded:
+                    self._velocity_forwarded = True
+                    self.log.info(f"arm: forwarding the drone's velocity from {self.attitude_topic} to the board")
             elif link.engaged:
                 self.log.warn_every(5.0, "arm: engaged but no attitude on the attitude topic for "
                                          f"{self.attitude_timeout} s"
