@@ -25,6 +25,20 @@ def gen():
     return generated.default()
 
 
+def sympy_at_30_digits(exprs):
+    """The SymPy model's expressions as one mpmath function of a {symbol: value} dict, at 30
+    digits: the oracle the generated float32 C is held to."""
+    import mpmath as mp
+    import sympy as sp
+    syms = sorted(set().union(*(sp.sympify(e).free_symbols for e in exprs)), key=str)
+    f = sp.lambdify(syms, exprs, modules="mpmath")
+
+    def evaluate(subs):
+        with mp.workdps(30):
+            return [float(v) for v in f(*[mp.mpf(float(subs[s])) for s in syms])]
+    return evaluate
+
+
 def skip_unless_ci(missing: str, how: str):
     """A tool a test needs is missing: skipped on a developer machine, a failure in CI (CI set)."""
     if os.environ.get("CI"):

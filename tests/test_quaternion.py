@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import math
 
-import mpmath as mp
 import numpy as np
 import pytest
 import sympy as sp
 from scipy.spatial.transform import Rotation
 
+from conftest import sympy_at_30_digits
 from uavarm.build import firmware, generated
 from uavarm.codegen import generate
 from uavarm.model import attitude, config, quaternion
@@ -65,22 +65,11 @@ def test_committed_model_is_what_these_tests_assume():
 
 # ---------------------------------------------------------------- the step against SymPy
 
-def _mp_function(exprs):
-    """The SymPy expressions as one mpmath function of a {symbol: value} dict, at 30 digits."""
-    syms = sorted(set().union(*(sp.sympify(e).free_symbols for e in exprs)), key=str)
-    f = sp.lambdify(syms, exprs, modules="mpmath")
-
-    def evaluate(subs):
-        with mp.workdps(30):
-            return [float(v) for v in f(*[mp.mpf(subs[s]) for s in syms])]
-    return evaluate
-
-
 def test_quaternion_step_matches_the_sympy_model(fw):
     ffi, lib = fw
     q_next, b_next, rate, up_next = quaternion.step(MODEL)
     gate = quaternion.accel_gate(MODEL)
-    model_step = _mp_function([sp.sympify(v).subs(quaternion.GATE, gate)
+    model_step = sympy_at_30_digits([sp.sympify(v).subs(quaternion.GATE, gate)
                                for v in list(q_next) + list(b_next) + list(rate) + list(up_next)])
     rng = np.random.default_rng(7)
     e = ffi.new("est_quat_t *")

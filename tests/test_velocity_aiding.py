@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import math
 
-import mpmath as mp
 import numpy as np
 import pytest
 import sympy as sp
 from scipy.spatial.transform import Rotation
 
+from conftest import sympy_at_30_digits
 from uavarm.build import firmware, variants
 from uavarm.model import attitude, config, quaternion, velocity
 
@@ -51,16 +51,6 @@ def test_committed_model_fuses_attitude_and_velocity():
 
 # ---------------------------------------------------------------- against SymPy
 
-def _mp_function(exprs):
-    syms = sorted(set().union(*(sp.sympify(e).free_symbols for e in exprs)), key=str)
-    f = sp.lambdify(syms, exprs, modules="mpmath")
-
-    def evaluate(subs):
-        with mp.workdps(30):
-            return [float(v) for v in f(*[mp.mpf(float(subs[s])) for s in syms])]
-    return evaluate
-
-
 def _unit_quat(rng):
     return Rotation.random(random_state=rng).as_quat()[[3, 0, 1, 2]].astype(np.float32)
 
@@ -68,12 +58,12 @@ def _unit_quat(rng):
 def test_generated_velocity_functions_match_the_sympy_model(fw):
     ffi, lib = fw
     rng = np.random.default_rng(11)
-    predict = _mp_function(velocity.predict(MODEL))
+    predict = sympy_at_30_digits(velocity.predict(MODEL))
     e_model, turn_model = velocity.innovation(MODEL)
-    innovation = _mp_function(e_model + turn_model)
-    turned = _mp_function(list(velocity.turned()))
+    innovation = sympy_at_30_digits(e_model + turn_model)
+    turned = sympy_at_30_digits(list(velocity.turned()))
     corr, err = quaternion.link_error()
-    link = _mp_function(list(corr) + list(err))
+    link = sympy_at_30_digits(list(corr) + list(err))
     f = lambda n: ffi.new(f"float[{n}]")
     v, acc, up, rate, e, turn, q, c, er, fc = f(3), f(3), f(3), f(3), f(3), f(3), f(4), f(4), f(3), f(3)
     v_level, v_hist = f(3), f(3)

@@ -20,7 +20,6 @@ the true base attitude.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -102,8 +101,7 @@ def fk_function(model):
 
 def fuses(model, key: str) -> bool:
     """Does the model's firmware fuse estimator.<key> (drone_attitude, drone_velocity)?"""
-    est = tomllib.loads(model.path.read_text()).get("estimator", {})
-    return bool(est.get(key, False))
+    return bool(getattr(model.estimator, key))
 
 
 class SlowError:
