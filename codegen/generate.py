@@ -329,6 +329,7 @@ def params_context(m: config.Model):
     """Model numbers the application uses as they are (units, register values, ms)."""
     ms = lambda s: round(s * 1000)
     lsb_per_g = config.accel_lsb_per_g(m.accel_range_g)
+    gyro_rad_per_lsb = sp.pi * sp.Rational(m.gyro_range_dps, 32768) / 180      # gyro_dps_per_lsb
     return {
         "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
         "tuck": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in tuck(m)],
@@ -360,10 +361,13 @@ def params_context(m: config.Model):
                     for sc in m.imu_calibration.accel_scale],
         "accel_c": [float32_literal(-sp.nsimplify(b, rational=True) / sp.nsimplify(sc, rational=True))
                     for b, sc in zip(m.imu_calibration.accel_bias, m.imu_calibration.accel_scale)],
-        # the estimator's starting gyro bias, base axes, rad/s
+        # calibrated: counts * rad_per_lsb / scale, per IMU axis (the offset is the estimator's)
+        "gyro_k": [float32_literal(gyro_rad_per_lsb / sp.nsimplify(sc, rational=True))
+                   for sc in m.imu_calibration.gyro_scale],
+        # the estimator's starting gyro bias, base axes, rad/s: the offset as the scaled rate reads it
         "gyro_bias0": [float32_literal(v) for v in attitude.mounting(m) * sp.Matrix(
-            [sp.pi * sp.nsimplify(d, rational=True) / 180 for d in m.imu_calibration.gyro_bias_dps])],
-        "gyro_rad_per_lsb": float32_literal(sp.pi * sp.Rational(m.gyro_range_dps, 32768) / 180),   # gyro_dps_per_lsb
+            [sp.pi * sp.nsimplify(d, rational=True) / (180 * sp.nsimplify(sc, rational=True))
+             for d, sc in zip(m.imu_calibration.gyro_bias_dps, m.imu_calibration.gyro_scale)])],
         "est": estimator_params(m),
     }
 

@@ -47,7 +47,7 @@ AX12_BAUD_REGISTER_MAX = 254
 BAUD_TOLERANCE = 0.03
 
 # Every key of the model file, by table; the imu.accel_bias, imu.accel_scale,
-# imu.gyro_bias_dps and servo.response_lag calibration may be absent. Any other key is refused (a typo would
+# imu.gyro_bias_dps, imu.gyro_scale and servo.response_lag calibration may be absent. Any other key is refused (a typo would
 # otherwise be ignored, or reported as the key it was meant to be missing).
 _KEYS_BY_TABLE = {
     "geometry": "L1 L2 L3",
@@ -61,7 +61,7 @@ _KEYS_BY_TABLE = {
     "motion": "axis_hold_radius axis_release_radius follow_window_deg stretch_margin",
     "link": "silence_timeout heartbeat_period frame_gap",
     "imu": "sample_rate i2c_address accel_range_g gyro_range_dps dlpf_bandwidth mounting_rpy "
-           "accel_bias accel_scale gyro_bias_dps",
+           "accel_bias accel_scale gyro_bias_dps gyro_scale",
     "mount": "offset",
     "filters.accel": "cutoff order", "filters.gyro": "cutoff order",
     "estimator": "kind complementary_gyro_weight accel_gain bias_gain align_accel_gain align_bias_gain "
@@ -147,9 +147,11 @@ class Model:
 
 
 # Plausible calibration results (MPU-6050 datasheet: zero-g offset +-80 mg on X and Y,
-# +-150 mg on Z; sensitivity within 3 %): beyond these the chip or the procedure is broken.
+# +-150 mg on Z; sensitivity within 3 %, the gyro's +-2 % more over temperature): beyond
+# these the chip or the procedure is broken.
 ACCEL_BIAS_MAX_G = 0.25
 ACCEL_SCALE_RANGE = (0.9, 1.1)
+GYRO_SCALE_RANGE = (0.9, 1.1)
 # An AX-12A's lag behind its goal until measured: inside the factory compliance slope (32
 # units) its duty, and at no load its speed, is proportional to the error, so the error
 # decays with 32 units / (59 rpm = 1207 units/s) = 26.5 ms (an assumption from the servo's
@@ -162,10 +164,12 @@ SERVO_LAG_MAX_S = 0.15
 @dataclass(frozen=True)
 class ImuCalibration:
     """[imu] calibration, IMU axes: each accelerometer axis reads scale x (true) + bias (g);
-    the gyro's zero-rate offset the estimator starts from (deg/s). Identity when absent."""
+    each gyro axis reads gyro_scale x (true) + its zero-rate offset, the offset (deg/s) the
+    estimator starts from. Identity when absent."""
     accel_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
     accel_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     gyro_bias_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    gyro_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -480,6 +484,7 @@ def _imu_calibration(r: _Reader) -> ImuCalibration:
         accel_scale=vector("imu.accel_scale", (1.0, 1.0, 1.0), *ACCEL_SCALE_RANGE, "scale factors"),
         gyro_bias_dps=vector("imu.gyro_bias_dps", (0.0, 0.0, 0.0), -gyro_max, gyro_max,
                              "rates in deg/s (within estimator.gyro_bias_max_dps)"),
+        gyro_scale=vector("imu.gyro_scale", (1.0, 1.0, 1.0), *GYRO_SCALE_RANGE, "scale factors"),
     )
 
 

@@ -114,7 +114,7 @@ def test_many_unknown_keys_are_counted(tmp_path):
 def test_calibration_keys_may_be_absent(tmp_path):
     text = BASE
     for line in ("accel_bias = [0.0, 0.0, 0.0]\n", "accel_scale = [1.0, 1.0, 1.0]\n",
-                 "gyro_bias_dps = [0.0, 0.0, 0.0]\n"):
+                 "gyro_bias_dps = [0.0, 0.0, 0.0]\n", "gyro_scale = [1.0, 1.0, 1.0]\n"):
         assert line in text
         text = text.replace(line, "", 1)
     line = "response_lag = 0.0265\n"
@@ -137,7 +137,7 @@ def test_every_other_key_is_required(tmp_path):
         for k, v in node.items():
             (stack.append((f"{prefix}{k}.", v)) if isinstance(v, dict) else leaves.append(f"{prefix}{k}"))
     assert sorted(leaves) == sorted(config.KNOWN_KEYS)
-    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps", "servo.response_lag"}
+    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps", "imu.gyro_scale", "servo.response_lag"}
     for key in leaves:
         doc = tomlkit.parse(BASE)
         *tables, name = key.split(".")
@@ -186,6 +186,8 @@ def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
     ("sample_rate = 100.0", "sample_rate = 3.0", "imu.sample_rate", "1000 Hz / n"),
     ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 0.0]", "imu.mounting_rpy", "expected 3"),
     ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 190.0, 0.0]", "imu.mounting_rpy[1]", "within"),
+    ("gyro_scale = [1.0, 1.0, 1.0]", "gyro_scale = [1.0, 1.2, 1.0]", "imu.gyro_scale[1]", "within [0.9, 1.1]"),
+    ("gyro_scale = [1.0, 1.0, 1.0]", "gyro_scale = [1.0, 1.0]", "imu.gyro_scale", "expected 3 scale factors"),
     ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, -80.0]", "mount.offset", "expected 3 lengths"),
     ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, 0.0, -2e4]", "mount.offset[2]", "within"),
     ("offset = [0.0, 0.0, -80.0]", "", "mount.offset", "missing"),
@@ -371,9 +373,10 @@ def test_mpu_registers_follow_the_datasheet(params):
     assert d["MODEL_MPU_GYRO_FS_SEL"] == GYRO_FS_SEL[imu["gyro_range_dps"]]
     assert _as_f32(d["MODEL_ACCEL_G_PER_LSB"]) == _as_f32(1 / ACCEL_LSB_PER_G[imu["accel_range_g"]])
     rad_per_lsb = math.radians(imu["gyro_range_dps"]) / 32768
-    assert _as_f32(d["MODEL_GYRO_RAD_PER_LSB"]) == _as_f32(rad_per_lsb)
     nominal = math.radians(1 / GYRO_LSB_PER_DPS_NOMINAL[imu["gyro_range_dps"]])
-    assert abs(d["MODEL_GYRO_RAD_PER_LSB"] / nominal - 1) < 2e-3     # the datasheet's rounding
+    for axis, scale in zip("XYZ", imu.get("gyro_scale", [1.0, 1.0, 1.0])):
+        assert _as_f32(d[f"MODEL_GYRO_K_{axis}"]) == _as_f32(rad_per_lsb / scale)
+        assert abs(d[f"MODEL_GYRO_K_{axis}"] * scale / nominal - 1) < 2e-3     # the datasheet's rounding
     assert d["MODEL_SAMPLE_RATE_HZ"] == imu["sample_rate"]
     assert _as_f32(d["MODEL_SAMPLE_PERIOD_S"]) == _as_f32(1 / imu["sample_rate"])
     assert d["MODEL_TICK_US"] == 1_000_000 / imu["sample_rate"]
