@@ -87,6 +87,11 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     time.sleep(0.1)
     assert sitl.board.app.drone_attitudes > before                      # forwarded while fresh
     assert ("info", f"arm: forwarding the drone's attitude from {c.attitude_topic} to the board") in log.lines
+    mark = len(log.lines)
+    for _ in range(10):                                                 # kept fresh, no velocity
+        c.attitude(0.01, -0.02, None, time.monotonic())
+        time.sleep(0.02)
+    assert not [text for _, text in log.lines[mark:] if "no attitude" in text]
     before = sitl.board.app.drone_velocities
     c.velocity((0.5, -0.25, 0.0), None, time.monotonic())
     time.sleep(0.1)                                                     # several loop steps

@@ -162,7 +162,7 @@ class ArmCore:
                 if not self._velocity_forwarded:
                     self._velocity_forwarded = True
                     self.log.info(f"arm: forwarding the drone's velocity from {self.attitude_topic} to the board")
-            elif link.engaged:
+            if not fresh and link.engaged:
                 self.log.warn_every(5.0, "arm: engaged but no attitude on the attitude topic for "
                                          f"{self.attitude_timeout} s"
                                     + ("" if self.keep_alive else "; keep-alive off: the arm will park"))
