@@ -18,13 +18,14 @@ import time
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from uavarm import calibrate
 from uavarm.calibrate import fit, guide
 from uavarm.calibrate.fit import CalibrationError, Window
 from uavarm.link import ArmLink, messages
 from uavarm.model import config
-from uavarm.sim.board import Gravity, Rocking
+from uavarm.sim.board import Gravity, Rocking, Turning
 from uavarm.sim.imu_model import Mpu6050Sensor
 from uavarm.sim.sitl import Sitl
 
@@ -57,6 +58,72 @@ def test_the_fit_refuses_an_axis_never_turned_down():
                for u in ([0, 0, 1], [0, 0, -1], [1, 0, 0], [0.7, 0.7, 0], [0, 1, 0], [0, -1, 0])]
     with pytest.raises(CalibrationError, match="X axis was never pointed straight up and straight down"):
         fit.fit_accel(windows)
+
+
+# Orientations (scipy Rotation, IMU axes to the world's) that put each IMU axis up, then
+# down, a few degrees off as a hand holds them, and how the hand turns between them.
+FACES = Rotation.from_euler("xy", [(0, 0), (180, 0), (0, -90), (0, 90), (90, 0), (-90, 0)], degrees=True)
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def synthetic_turns(scale, offset_dps, seed=0, noise_dps=0.02, rate_hz=100.0, seconds=1.5, around_vertical=0.0):
+    """Turns between the FACES, as fit.Turn: each a smooth (smoothstep) rotation about one
+    axis fixed in the board, plus `around_vertical` rad about the world's vertical, read by
+    a gyro of that scale and offset with white noise; the up directions from the rotations."""
+    rng = np.random.default_rng(seed)
+    held = FACES * Rotation.from_rotvec(rng.normal(0, 0.05, (6, 3)))
+    turns = []
+    for k in range(5):
+        start = held[k]
+        end = Rotation.from_rotvec([0, 0, around_vertical * (-1) ** k]) * held[k + 1]
+        phi = (start.inv() * end).as_rotvec()                # body-fixed axis and angle
+        t = np.arange(0.0, seconds + 1e-9, 1.0 / rate_hz)
+        x = t / seconds
+        speed = 6 * x * (1 - x) / seconds                      # d/dt of the smoothstep
+        true_dps = np.degrees(speed[:, None] * phi)
+        read = scale * true_dps + offset_dps + rng.normal(0, noise_dps, true_dps.shape)
+        turns.append(fit.Turn(read, np.diff(t), start.inv().apply(UP), end.inv().apply(UP)))
+    return turns
+
+
+def test_the_gyro_scale_fit_recovers_each_axis_from_the_turns():
+    scale, offset = np.array([1.027, 0.972, 1.011]), np.array([2.5, -1.7, 0.8])
+    got = fit.fit_gyro_scale(synthetic_turns(scale, offset), offset)
+    assert np.abs(got.scale / scale - 1).max() < 5e-4
+    assert got.residual_deg < 0.05 and got.turns == 5
+
+
+def test_the_gyro_scale_fit_is_blind_to_turns_about_the_vertical():
+    """Turning about the vertical on the way changes no up direction: the same scale."""
+    scale, offset = np.array([0.985, 1.02, 1.0]), np.zeros(3)
+    plain = fit.fit_gyro_scale(synthetic_turns(scale, offset, seed=1), offset).scale
+    spun = fit.fit_gyro_scale(synthetic_turns(scale, offset, seed=1, around_vertical=1.0), offset).scale
+    assert np.abs(plain / scale - 1).max() < 5e-4 and np.abs(spun / scale - 1).max() < 5e-4
+
+
+def test_the_gyro_scale_fit_refuses_an_axis_never_turned_over():
+    """Only flips about X: Y and Z are not seen (a flip about X moves up about X only)."""
+    flips = [Rotation.identity(), Rotation.from_euler("x", 180, degrees=True), Rotation.identity()]
+    turns = []
+    for a, b in zip(flips, flips[1:]):
+        t = np.arange(0.0, 1.0, 0.01)
+        x = t / t[-1]
+        rate = np.degrees(6 * x * (1 - x) / t[-1])[:, None] * (a.inv() * b).as_rotvec()
+        turns.append(fit.Turn(rate, np.diff(t), a.inv().apply(UP), b.inv().apply(UP)))
+    with pytest.raises(CalibrationError, match="hardly turned about the IMU's Y axis"):
+        fit.fit_gyro_scale(turns, np.zeros(3))
+
+
+def test_the_gyro_scale_fit_refuses_turns_that_disagree():
+    """A turn whose position after it was taken still moving: its up direction 3 deg off."""
+    offset = np.zeros(3)
+    turns = synthetic_turns(np.ones(3), offset)
+    bad = turns[2]
+    tilt = np.cross(bad.up_after, [0.3, 0.5, 0.8])
+    tilt *= math.radians(3.0) / np.linalg.norm(tilt)
+    turns[2] = fit.Turn(bad.gyro_dps, bad.dt, bad.up_before, Rotation.from_rotvec(tilt).apply(bad.up_after))
+    with pytest.raises(CalibrationError, match="do not fit one gyro scale"):
+        fit.fit_gyro_scale(turns, offset)
 
 
 # ---------------------------------------------------------------- through the SITL
@@ -102,15 +169,49 @@ def turning(sitl, orientations, hold=0.15):
     return ask
 
 
+# The hand's turns (rotation vectors, deg, about the board's own axes) from flat to each of
+# the six positions in turn: over X, Y, Z, Z, X, each a few degrees off the axis.
+HAND_TURNS = [(0, 0, 0), (180, 8, -5), (4, 90, 6), (-6, 5, 180), (3, -4, 90), (180, 6, 4)]
+TURN_SECONDS = 1.5                 # simulated
+
+
+def turning_by_hand(sitl, turns=HAND_TURNS, hold=0.15):
+    """The user: at each prompt, the board turned smoothly over the next of `turns` from
+    where it is (the gyro sees it), then held still."""
+    it = iter(turns)
+    where = {"R": np.eye(3)}
+
+    def ask(text):
+        motion = Turning(where["R"], np.radians(next(it)), sitl.board.time, TURN_SECONDS)
+        sitl.board.motion = motion
+        where["R"] = motion.end()
+        time.sleep(TURN_SECONDS / SPEED + hold)
+    return ask
+
+
 @pytest.mark.parametrize("seed", [1, 2])
-def test_imu_calibration_recovers_the_sensors_errors(model_copy, seed):
+def test_imu_calibration_recovers_the_sensors_errors(model_copy, seed, capsys):
     with sitl_link(sensor=sensor(seed=seed)) as (s, arm):
-        assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+        assert calibrate.imu(arm, model_copy, turning_by_hand(s), lambda q: True, seconds=SECONDS)
     truth = s.board.sensor.draw
     cal = config.load(model_copy).imu_calibration
     assert np.abs(np.array(cal.accel_bias) - truth.accel_bias).max() <= 0.002            # 2 mg
     assert np.abs(np.array(cal.accel_scale) / truth.accel_scale - 1).max() <= 0.003      # 0.3 %
     assert np.abs(np.array(cal.gyro_bias_dps) - np.degrees(truth.gyro_bias)).max() <= 0.05
+    assert np.abs(np.array(cal.gyro_scale) / truth.gyro_scale - 1).max() <= 0.002        # 0.2 %
+    assert "over 5 turns" in capsys.readouterr().out
+
+
+def test_positions_taken_without_the_turns_leave_the_gyro_scale_as_it_was(model_copy, capsys):
+    """A board put into each position between two reads (no rate seen): the accelerometer
+    is calibrated, the gyro scale said not measured and not written."""
+    with sitl_link(sensor=sensor()) as (s, arm):
+        assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+    out = capsys.readouterr().out
+    assert "gyro scale not measured, imu.gyro_scale left as it is: the board hardly turned" in out
+    cal = config.load(model_copy).imu_calibration
+    assert cal.gyro_scale == (1.0, 1.0, 1.0)
+    assert np.abs(np.array(cal.accel_bias) - s.board.sensor.draw.accel_bias).max() <= 0.002
     text = model_copy.read_text()
     assert "# Calibration (`uavarm calibrate imu`)" in text and "# Landing legs, as joint-1 angles" in text
 

@@ -196,9 +196,10 @@ def parser() -> argparse.ArgumentParser:
                          "link silence timeout)")
     cal = sub.add_parser("calibrate", help="guided calibration over the link, written into the model file")
     cal.add_argument("what", choices=["imu", "mounting", "servos", "lag", "link"],
-                     help="imu: accelerometer bias and scale (six still positions) and the gyro's offset; "
-                          "mounting: the IMU's roll and pitch on the base (drone standing level); servos: "
-                          "each servo's zero and direction (the arm held at its zero pose, then small jogs); "
+                     help="imu: accelerometer bias and scale (six still positions), the gyro's offset, "
+                          "and its scale (the turns between them); mounting: the IMU's roll and pitch on the "
+                          "base (drone standing level); servos: each servo's zero and direction (the arm held "
+                          "at its zero pose, then small jogs); "
                           "lag: how far the servos lag their goal (a jog of each joint), and the lead time; "
                           "link: the link's fixed delay from this computer (pings), run on the drone's computer")
     cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")

@@ -6,6 +6,14 @@ corrected readings of every position lie on the unit sphere. Bias and scale per 
 least-squares fit of |(reading - bias) / scale| = 1 over the positions (Gauss-Newton from the
 per-axis mid-points); the positions need not be exactly aligned with the axes.
 
+Gyro scale (the same session: the rates streamed while the board is turned from one
+position to the next): each axis reads scale x (true) + offset, the offset known from the
+still positions. The rates with the offset removed, divided by the scale and integrated
+over a turn, must carry the up direction seen before it (the accelerometer's, corrected)
+onto the one seen after it; the scales are the least-squares fit of that over the turns
+(Gauss-Newton from 1). A turn about the vertical is not seen, so each axis must have turned
+about a horizontal direction, which turning the board from face to face does.
+
 Mounting: with the drone standing level the IMU's corrected reading is the base frame's up
 in IMU axes; for v_base = Rz(yaw) Ry(pitch) Rx(roll) v_imu that is (-sin p, sin r cos p,
 cos r cos p), which gives roll and pitch (yaw is not seen by gravity).
@@ -29,7 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model.config import ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, accel_lsb_per_g, gyro_dps_per_lsb
+from ..model.config import (ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, GYRO_SCALE_RANGE, accel_lsb_per_g,
+                            gyro_dps_per_lsb)
 
 # A still window: the spread of the readings no more than the sensor's noise allows
 # (400 ug/sqrt(Hz) through the 21 Hz DLPF is about 2 mg rms; 0.005 deg/s/sqrt(Hz) 0.02 deg/s).
@@ -111,6 +120,86 @@ def gyro_bias(windows: list[Window]) -> np.ndarray:
     """deg/s: the mean rate over every still position (the board turned between them, not during)."""
     weights = np.array([w.samples for w in windows], dtype=float)
     return (np.array([w.gyro_dps for w in windows]) * weights[:, None]).sum(axis=0) / weights.sum()
+
+
+# Gyro scale fit: how much each axis must have turned (how far the up directions after the
+# turns move per unit of its scale: 0.5 rad is 0.3 deg per percent, several times the error
+# of an up direction) and how well the turns must agree.
+GYRO_SCALE_SEEN_RAD = 0.5
+GYRO_TURN_RESIDUAL_MAX_DEG = 0.25  # rms over the turns of the up direction's misfit (1 deg off in one: 0.26)
+
+
+@dataclass(frozen=True)
+class Turn:
+    """The board turned by hand between two still positions: the raw rates (deg/s, IMU
+    axes) streamed during it, the seconds between consecutive ones, and the up direction
+    (unit vector, IMU axes) of the positions before and after."""
+    gyro_dps: np.ndarray           # (n, 3)
+    dt: np.ndarray                 # (n - 1,)
+    up_before: np.ndarray
+    up_after: np.ndarray
+
+
+@dataclass(frozen=True)
+class GyroScaleFit:
+    scale: np.ndarray
+    residual_deg: float            # rms misfit of the up direction after each turn
+    turns: int
+
+
+def _rotation(axis_angle: np.ndarray) -> np.ndarray:
+    """Rodrigues: the rotation matrix of a rotation vector (rad)."""
+    angle = float(np.linalg.norm(axis_angle))
+    if angle < 1e-12:
+        return np.eye(3)
+    k = axis_angle / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+
+
+def turned(turn: Turn, scale: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
+    """The board's turn as a rotation matrix R (after-axes to before-axes: v_before = R
+    v_after), integrating the corrected rate between samples as their mean."""
+    rate = np.radians((turn.gyro_dps - offset_dps) / scale)
+    R = np.eye(3)
+    for k, dt in enumerate(turn.dt):
+        R = R @ _rotation(0.5 * (rate[k] + rate[k + 1]) * dt)
+    return R
+
+
+def _up_misfit(turns: list[Turn], scale: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
+    """Per turn, the up direction carried through the turn minus the one seen after it."""
+    return np.concatenate([turned(t, scale, offset_dps).T @ t.up_before - t.up_after for t in turns])
+
+
+def fit_gyro_scale(turns: list[Turn], offset_dps: np.ndarray) -> GyroScaleFit:
+    """Each gyro axis's scale from turns between still positions; CalibrationError if an
+    axis did not turn enough to tell, or the turns do not agree."""
+    if not turns:
+        raise CalibrationError("no turn between positions was streamed whole: is the link dropping frames?")
+    scale = np.ones(3)
+    step_size = 1e-6
+    for _ in range(20):
+        r = _up_misfit(turns, scale, offset_dps)
+        jac = np.stack([(_up_misfit(turns, scale + step_size * np.eye(3)[i], offset_dps) - r) / step_size
+                        for i in range(3)], axis=1)
+        for axis, name in enumerate("XYZ"):
+            if np.linalg.norm(jac[:, axis]) < GYRO_SCALE_SEEN_RAD:
+                raise CalibrationError(f"the board hardly turned about the IMU's {name} axis (other than about the "
+                                       "vertical), so its gyro scale cannot be told: turn it over that axis")
+        step, *_ = np.linalg.lstsq(jac, -r, rcond=None)
+        scale = scale + step
+        if np.abs(step).max() < 1e-9:
+            break
+    misfit = _up_misfit(turns, scale, offset_dps).reshape(-1, 3)
+    residual = float(np.degrees(np.sqrt(np.mean(np.sum(misfit ** 2, axis=1)))))
+    if residual > GYRO_TURN_RESIDUAL_MAX_DEG:
+        raise CalibrationError(f"the turns do not fit one gyro scale (rms {residual:.2f} deg, at most "
+                               f"{GYRO_TURN_RESIDUAL_MAX_DEG}): was the board moving when a position was taken?")
+    if not (GYRO_SCALE_RANGE[0] <= scale.min() and scale.max() <= GYRO_SCALE_RANGE[1]):
+        raise CalibrationError(f"gyro scale {np.round(scale, 4)}: outside what an MPU-6050 can be "
+                               f"({GYRO_SCALE_RANGE}); check the IMU and its range setting")
+    return GyroScaleFit(scale, residual, len(turns))
 
 
 def mounting_from_gravity(up_imu: np.ndarray) -> tuple[float, float]:

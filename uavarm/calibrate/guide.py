@@ -8,6 +8,7 @@ The procedures take `ask(text)` (wait for the user; the terminal's Enter) and
 as a user does on the bench."""
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
@@ -30,27 +31,85 @@ POSITIONS = (
 TRIES = 3
 
 
-def _still_window(arm, model, ask, text: str, seconds: float) -> Window:
-    for attempt in range(TRIES):
-        ask(text)
+def _ask_reading(arm, ask, text: str) -> None:
+    """ask(text) while the link is read on, so that the rates of the turn the user makes
+    meanwhile are all kept (and none pile up unread)."""
+    done, failed = threading.Event(), []
+
+    def wait():
         try:
-            return fit.window(arm.collect("imu_raw", seconds), model.accel_range_g, model.gyro_range_dps)
-        except CalibrationError as exc:
-            if attempt == TRIES - 1:
-                raise
-            print(f"  {exc}")
-    raise AssertionError("unreachable")
+            ask(text)
+        except BaseException as exc:          # (Ctrl-D: EOFError) raised here again
+            failed.append(exc)
+        finally:
+            done.set()
+    threading.Thread(target=wait, daemon=True).start()
+    while not done.wait(0.005):
+        arm.poll()
+    if failed:
+        raise failed[0]
+
+
+def _take_streamed(arm) -> list[dict]:
+    arm.poll()
+    frames = list(arm.streamed["imu_raw"])
+    arm.streamed["imu_raw"].clear()
+    return frames
+
+
+class _Record:
+    """Every imu_raw frame of a calibration, in order, and where each still position's are."""
+
+    def __init__(self):
+        self.frames: list[dict] = []
+        self.spans: list[tuple[int, int]] = []
+
+    def position(self, arm, model, ask, text: str, seconds: float) -> Window:
+        for attempt in range(TRIES):
+            _ask_reading(arm, ask, text)
+            self.frames += _take_streamed(arm)           # the turn
+            first = len(self.frames)
+            arm.collect("imu_raw", seconds, keep=True)
+            self.frames += _take_streamed(arm)
+            try:
+                w = fit.window(self.frames[first:], model.accel_range_g, model.gyro_range_dps)
+            except CalibrationError as exc:
+                if attempt == TRIES - 1:
+                    raise
+                print(f"  {exc}")
+                continue
+            self.spans.append((first, len(self.frames)))
+            return w
+        raise AssertionError("unreachable")
+
+    def turns(self, ups: list[np.ndarray], range_dps: int) -> list[fit.Turn]:
+        """The turns between consecutive positions that were streamed whole (a lost frame
+        leaves a turn out, said so)."""
+        out = []
+        for k in range(len(self.spans) - 1):
+            part = self.frames[self.spans[k][1] - 1:self.spans[k + 1][0] + 1]
+            seq = np.array([f["seq"] for f in part])
+            lost = int(((np.diff(seq) - 1) % 65536).sum())
+            if lost:
+                print(f"  the turn from position {k + 1} to {k + 2}: {lost} IMU samples lost on the link, not used")
+                continue
+            gyro = np.array([[f["gx"], f["gy"], f["gz"]] for f in part], dtype=float) * config.gyro_dps_per_lsb(range_dps)
+            dt = (np.diff(np.array([f["stamp_us"] for f in part], dtype=np.int64)) % 2 ** 32) * 1e-6
+            out.append(fit.Turn(gyro, dt, ups[k], ups[k + 1]))
+        return out
 
 
 def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
-    """Accelerometer bias and scale from six still positions, and the gyro's zero-rate offset."""
+    """Accelerometer bias and scale from six still positions, the gyro's zero-rate offset,
+    and its scale from the turns between them."""
     model = config.load(model_path)
+    record = _Record()
     arm.stream(imu_every=1)
     try:
         windows = []
         for k, where in enumerate(POSITIONS, 1):
-            w = _still_window(arm, model, ask, f"Position {k}/{len(POSITIONS)}: the board {where}. "
-                                               "Hold it still and press Enter.", seconds)
+            w = record.position(arm, model, ask, f"Position {k}/{len(POSITIONS)}: the board {where}. "
+                                                 "Turn it there in one go, hold it still and press Enter.", seconds)
             print(f"  {w.samples} samples, mean ({w.accel_g[0]:+.3f}, {w.accel_g[1]:+.3f}, {w.accel_g[2]:+.3f}) g")
             windows.append(w)
     finally:
@@ -61,11 +120,21 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
           f"scale ({', '.join(f'{s:.4f}' for s in accel.scale)}), fit rms {accel.residual_g * 1000:.2f} mg over "
           f"{len(windows)} positions")
     print(f"gyro zero-rate offset: ({', '.join(f'{g:+.2f}' for g in gyro)}) deg/s")
-    return model_edit.write(model_path, {
+    values = {
         "imu.accel_bias": [round(float(b), 4) for b in accel.bias],
         "imu.accel_scale": [round(float(s), 5) for s in accel.scale],
         "imu.gyro_bias_dps": [round(float(g), 3) for g in gyro],
-    }, confirm)
+    }
+    ups = [(w.accel_g - accel.bias) / accel.scale for w in windows]
+    try:
+        scale = fit.fit_gyro_scale(record.turns([u / np.linalg.norm(u) for u in ups], model.gyro_range_dps), gyro)
+    except CalibrationError as exc:
+        print(f"gyro scale not measured, imu.gyro_scale left as it is: {exc}")
+    else:
+        print(f"gyro scale ({', '.join(f'{s:.4f}' for s in scale.scale)}), fit rms {scale.residual_deg:.3f} deg "
+              f"over {scale.turns} turns")
+        values["imu.gyro_scale"] = [round(float(s), 5) for s in scale.scale]
+    return model_edit.write(model_path, values, confirm)
 
 
 def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibrated_ok: bool = False) -> bool:
@@ -78,8 +147,8 @@ def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibr
                                "3 deg): run `uavarm calibrate imu` first")
     arm.stream(imu_every=1)
     try:
-        w = _still_window(arm, model, ask, "Stand the drone level (a spirit level on the frame) with the "
-                                           "arm mounted. Press Enter.", seconds)
+        w = _Record().position(arm, model, ask, "Stand the drone level (a spirit level on the frame) with the "
+                                                "arm mounted. Press Enter.", seconds)
     finally:
         arm.stream(imu_every=0)
     up = (w.accel_g - np.array(cal.accel_bias)) / np.array(cal.accel_scale)

@@ -99,6 +99,48 @@ class Rocking:
         return specific_force_up(roll, pitch), gyro
 
 
+def _rotation(axis_angle) -> np.ndarray:
+    """Rodrigues: the rotation matrix of a rotation vector (rad)."""
+    v = np.asarray(axis_angle, dtype=float)
+    angle = float(np.linalg.norm(v))
+    if angle == 0.0:
+        return np.eye(3)
+    k = v / angle
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
+
+
+@dataclass
+class Turning:
+    """The board turned by hand about its own centre: from orientation `start` (rotation
+    matrix, base axes to the world's) about an axis fixed in the board (`turn`: rotation
+    vector, rad, base axes), smoothly (smoothstep) over `seconds` from board time `t0`, then
+    held still there."""
+    start: np.ndarray
+    turn: np.ndarray
+    t0: float
+    seconds: float
+
+    def _progress(self, t: float) -> tuple[float, float]:
+        x = min(max((t - self.t0) / self.seconds, 0.0), 1.0)
+        return x * x * (3 - 2 * x), 6 * x * (1 - x) / self.seconds
+
+    def orientation(self, t: float) -> np.ndarray:
+        return self.start @ _rotation(self._progress(t)[0] * np.asarray(self.turn, dtype=float))
+
+    def end(self) -> np.ndarray:
+        return self.orientation(self.t0 + self.seconds)
+
+    def attitude(self, t: float):
+        R = self.orientation(t)
+        return math.atan2(R[2, 1], R[2, 2]), -math.asin(max(-1.0, min(1.0, R[2, 0])))
+
+    def imu(self, t: float):
+        """(specific force in g, body rates in rad/s), base axes: up seen from the board (its
+        centre does not move), the rate along the turn's axis."""
+        return tuple(self.orientation(t)[2]), tuple(self._progress(t)[1] * np.asarray(self.turn, dtype=float))
+
+
 class SimBoard:
     """model: the model the firmware was generated from; servos: AX12 objects (default: one
     per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
