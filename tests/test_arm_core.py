@@ -73,6 +73,7 @@ def test_a_status_is_the_heartbeat_in_si_units_and_names():
     assert s["refusal"] == "no_route" and s["fault_names"] == ["servo_timeout", "servo_config"]
     assert s["joints"] == [0.1, 0.2, -0.3] and s["enabled"] is True and s["last_fault"] == "HardFault"
     assert status_of(heartbeat(), "drone")["refusal"] == "" and status_of(heartbeat(), "drone")["last_fault"] == ""
+    assert s["velocity_source"] == "none" and status_of(hb, "drone", "drone")["velocity_source"] == "drone"
 
 
 def test_the_core_drives_the_board_and_forwards_the_attitude(core):
@@ -97,9 +98,12 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     time.sleep(0.1)                                                     # several loop steps
     assert sitl.board.app.drone_velocities == before + 1                # each measurement once
     assert ("info", f"arm: forwarding the drone's velocity from {c.attitude_topic} to the board") in log.lines
+    assert c.velocity_source == "drone"                                 # (what the next status says)
     c.velocity((0.5, -0.25, 0.0), None, time.monotonic() - 1.0)         # stale when it came
-    time.sleep(0.1)
+    time.sleep(0.3)
     assert sitl.board.app.drone_velocities == before + 1
+    assert c.velocity_source == "none"
+    assert ("warn", f"arm: no velocity on {c.attitude_topic} for 0.20 s: the board goes on without it") in log.lines
     # none fresh: the core keeps the engaged arm alive past the board's silence timeout
     time.sleep(2 * config.load().link_silence_timeout / SPEED + 0.5)
     assert statuses[-1]["engaged"] and statuses[-1]["attitude_source"] == "imu"

@@ -380,6 +380,7 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
         assert held is None, f"the engaged arm parked while the attitude was forwarded: {held}"
         fusing = arm.wait_status(lambda s: True, 1.0)
         assert fusing.attitude_source == "drone" and fusing.header.frame_id == "arm_base"
+        assert fusing.velocity_source == "drone"
         window = [f for t, f in arm.tap.attitudes[n0:]]
         rate = len(window) / (time.monotonic() - t0)
     finally:
@@ -404,8 +405,10 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
     status = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)
     assert status is not None, "the arm did not park when the link fell silent"
     assert "link_lost" in status.fault_names and status.enabled and status.attitude_source == "imu"
+    assert status.velocity_source == "none"
     assert "forwarding the drone's attitude from /" + arm.ns + "/estimation_manager/odom_main" in arm.log()
     assert "the board runs on its own IMU only" in arm.log()
+    assert "no velocity on /" + arm.ns + "/estimation_manager/odom_main" in arm.log()
     end = time.monotonic() + 10
     while "fault link_lost" not in arm.log() and time.monotonic() < end:
         time.sleep(0.1)

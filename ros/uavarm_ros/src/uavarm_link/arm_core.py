@@ -61,10 +61,10 @@ def describe(hb: dict) -> str:
             f"faults {fault_names(hb['faults'])}")
 
 
-def status_of(hb: dict, attitude_source: str) -> dict:
+def status_of(hb: dict, attitude_source: str, velocity_source: str = "none") -> dict:
     """A heartbeat as the node reports it: SI units (m, s), names for codes."""
     return {
-        "attitude_source": attitude_source,
+        "attitude_source": attitude_source, "velocity_source": velocity_source,
         "enabled": bool(hb["enabled"]), "engaged": bool(hb["engaged"]), "unreachable": bool(hb["unreachable"]),
         "seq": hb["seq"], "uptime": hb["uptime_ms"] / 1000.0, "state": hb["state"],
         "refusal": REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else "",
@@ -96,8 +96,9 @@ class ArmCore:
         self.command_lock = threading.Lock()      # one command (send + confirmation) at a time
         self._attitude = None                     # (roll, pitch, stamp_us or None, received)
         self._velocity = None                     # ((vx, vy, vz), stamp_us or None, received), until sent
-        self._velocity_forwarded = False          # logged once
+        self._velocity_sent = None                # when the last one was forwarded
         self.attitude_source = "imu"              # what the last step forwarded: "drone" or "imu"
+        self.velocity_source = "none"             # "drone" while velocities are forwarded
         self._last_hb = None
         self._last_hb_time = None
         self._silent = False
@@ -159,9 +160,9 @@ class ArmCore:
             vel, self._velocity = self._velocity, None        # each measurement once
             if vel is not None and now - vel[2] <= self.attitude_timeout:
                 link.send_velocity(*vel[0], vel[1])
-                if not self._velocity_forwarded:
-                    self._velocity_forwarded = True
-                    self.log.info(f"arm: forwarding the drone's velocity from {self.attitude_topic} to the board")
+                self._velocity_sent = now
+            forwarding = self._velocity_sent is not None and now - self._velocity_sent <= self.attitude_timeout
+            self._report_velocity("drone" if forwarding else "none")
             if not fresh and link.engaged:
                 self.log.warn_every(5.0, "arm: engaged but no attitude on the attitude topic for "
                                          f"{self.attitude_timeout} s"
@@ -183,6 +184,16 @@ class ArmCore:
             self.log.warn(f"arm: no attitude on {self.attitude_topic} for {self.attitude_timeout:.2f} s: "
                           "the board runs on its own IMU only")
 
+    def _report_velocity(self, source: str) -> None:
+        if source == self.velocity_source:
+            return
+        self.velocity_source = source
+        if source == "drone":
+            self.log.info(f"arm: forwarding the drone's velocity from {self.attitude_topic} to the board")
+        else:
+            self.log.warn(f"arm: no velocity on {self.attitude_topic} for {self.attitude_timeout:.2f} s: the board "
+                          "goes on without it")
+
     def _check_silence(self, now: float) -> None:
         if self._last_hb_time is not None and now - self._last_hb_time > self.link.silence and not self._silent:
             self._silent = True
@@ -203,7 +214,7 @@ class ArmCore:
             if name not in before:
                 self.log.warn(f"arm: fault {name}: {FAULT_TEXT[name]}")
         self._last_hb = hb
-        self.on_status(status_of(hb, self.attitude_source))
+        self.on_status(status_of(hb, self.attitude_source, self.velocity_source))
 
     # ---------------------------------------------------------------- commands
 

@@ -10,8 +10,9 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   than a heartbeat period; a board restart is logged as a warning). A message of this package
   rather than diagnostic_msgs key/value strings, so consumers get typed fields (flags, joints,
   set position, counters) and the fault bits by name; its header's frame_id is `arm_base`
-  (the URDF's), and `attitude_source` says whether the drone's attitude is being forwarded
-  ("drone") or the board runs on its own IMU only ("imu"; each change is logged). New fault
+  (the URDF's), `attitude_source` says whether the drone's attitude is being forwarded
+  ("drone") or the board runs on its own IMU only ("imu"), and `velocity_source` whether the
+  drone's velocity is ("drone" or "none"; each change is logged). New fault
   bits (for example link_lost when the arm parked after a silent link) are logged as warnings.
 - the drone's attitude (`~attitude_topic`, default `estimation_manager/odom_main`, the MRS UAV
   System's estimated state; `~attitude_type`: nav_msgs/Odometry,
