@@ -64,7 +64,7 @@ def test_white_profile_has_no_bias_and_noise_through_the_firmwares_filter():
 
 @pytest.mark.parametrize("profile, gyro_dps, accel_g, scale", [
     ("datasheet", 20.0, (0.050, 0.050, 0.080), 0.03),
-    ("calibrated", 3.0, (0.005, 0.005, 0.009), 0.03),
+    ("calibrated", 3.0, (0.005, 0.005, 0.009), 0.004),
 ])
 def test_biases_and_scale_errors_stay_in_their_ranges_and_fill_them(profile, gyro_dps, accel_g, scale):
     draws = [Mpu6050Sensor(profile, seed=s).draw for s in range(300)]
