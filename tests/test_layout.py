@@ -15,8 +15,8 @@ ALLOWED = {
     "m4": set(),
     "build": {"model", "codegen", "toml_text"},
     "link": set(),
-    "sim": {"model", "build", "link", "toml_text"},
-    "calibrate": {"model", "link"},
+    "sim": {"model", "build", "link", "toml_text", "rotation"},
+    "calibrate": {"model", "link", "rotation"},
 }
 
 

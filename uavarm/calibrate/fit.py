@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import rotation
 from ..model.config import (ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, GYRO_SCALE_RANGE, accel_lsb_per_g,
                             gyro_dps_per_lsb)
 
@@ -147,23 +148,13 @@ class GyroScaleFit:
     turns: int
 
 
-def _rotation(axis_angle: np.ndarray) -> np.ndarray:
-    """Rodrigues: the rotation matrix of a rotation vector (rad)."""
-    angle = float(np.linalg.norm(axis_angle))
-    if angle < 1e-12:
-        return np.eye(3)
-    k = axis_angle / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
-
-
 def turned(turn: Turn, scale: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
     """The board's turn as a rotation matrix R (after-axes to before-axes: v_before = R
     v_after), integrating the corrected rate between samples as their mean."""
     rate = np.radians((turn.gyro_dps - offset_dps) / scale)
     R = np.eye(3)
     for k, dt in enumerate(turn.dt):
-        R = R @ _rotation(0.5 * (rate[k] + rate[k + 1]) * dt)
+        R = R @ rotation.from_vector(0.5 * (rate[k] + rate[k + 1]) * dt)
     return R
 
 

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .. import rotation
 from ..build import firmware
 from ..link import llcp, messages
 from . import ax12_sim
@@ -99,17 +100,6 @@ class Rocking:
         return specific_force_up(roll, pitch), gyro
 
 
-def _rotation(axis_angle) -> np.ndarray:
-    """Rodrigues: the rotation matrix of a rotation vector (rad)."""
-    v = np.asarray(axis_angle, dtype=float)
-    angle = float(np.linalg.norm(v))
-    if angle == 0.0:
-        return np.eye(3)
-    k = v / angle
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
-
-
 @dataclass
 class Turning:
     """The board turned by hand about its own centre: from orientation `start` (rotation
@@ -126,7 +116,7 @@ class Turning:
         return x * x * (3 - 2 * x), 6 * x * (1 - x) / self.seconds
 
     def orientation(self, t: float) -> np.ndarray:
-        return self.start @ _rotation(self._progress(t)[0] * np.asarray(self.turn, dtype=float))
+        return self.start @ rotation.from_vector(self._progress(t)[0] * np.asarray(self.turn, dtype=float))
 
     def end(self) -> np.ndarray:
         return self.orientation(self.t0 + self.seconds)
