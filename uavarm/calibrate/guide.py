@@ -93,7 +93,8 @@ class _Record:
             if lost:
                 print(f"  the turn from position {k + 1} to {k + 2}: {lost} IMU samples lost on the link, not used")
                 continue
-            gyro = np.array([[f["gx"], f["gy"], f["gz"]] for f in part], dtype=float) * config.gyro_dps_per_lsb(range_dps)
+            counts = np.array([[f["gx"], f["gy"], f["gz"]] for f in part], dtype=float)
+            gyro = counts * config.gyro_dps_per_lsb(range_dps)
             dt = (np.diff(np.array([f["stamp_us"] for f in part], dtype=np.int64)) % 2 ** 32) * 1e-6
             out.append(fit.Turn(gyro, dt, ups[k], ups[k + 1]))
         return out

@@ -134,7 +134,7 @@ class Turning:
 class SimBoard:
     """model: the model the firmware was generated from; servos: AX12 objects (default: one
     per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
-    and still), Rocking, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
+    and still), Rocking, Turning, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
     the last heartbeats (long runs such as the SITL); servo_lag: the default servos' shaft
     lag behind their speed-limited profile (s, first order, stopping within the compliance
