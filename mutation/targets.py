@@ -88,6 +88,9 @@ TARGETS = (
            (("c", "stream_fresh"), ("c", "history_at"), ("c", "admit"), ("c", "take"), ("c", "move_fc_error"),
             ("c", "stab_drone_attitude"), ("c", "shift_velocity"), ("c", "stab_drone_velocity")),
            ("tests/test_velocity_aiding.py", "tests/test_quaternion.py")),
+    Target("calibrate/fit.py: gyro scale", "uavarm/calibrate/fit.py",
+           (("py", "turned"), ("py", "_up_misfit"), ("py", "fit_gyro_scale")),
+           ("tests/test_calibrate.py",)),
 )
 
 # Never run against a mutant: they compare generated/ with the generator's output, which

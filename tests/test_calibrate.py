@@ -114,6 +114,59 @@ def test_the_gyro_scale_fit_refuses_an_axis_never_turned_over():
         fit.fit_gyro_scale(turns, np.zeros(3))
 
 
+@pytest.mark.parametrize("scale", [0.88, 1.12])
+def test_the_gyro_scale_fit_refuses_a_scale_no_mpu6050_has(scale):
+    """Beyond the model file's 0.9-1.1 (a wrong range setting reads 2x or 0.5x)."""
+    with pytest.raises(CalibrationError, match="outside what an MPU-6050 can be"):
+        fit.fit_gyro_scale(synthetic_turns(np.array([1.0, scale, 1.0]), np.zeros(3)), np.zeros(3))
+
+
+def test_the_gyro_scale_fit_needs_a_turn():
+    with pytest.raises(CalibrationError, match="no turn between positions was streamed whole"):
+        fit.fit_gyro_scale([], np.zeros(3))
+
+
+def recorded(turns, range_dps=500, lose=None):
+    """The imu_raw frames a board streams through `turns` (each turn's first and last
+    sample the still positions' edges), 2 still frames per position between them; the
+    board's clock wrapping on the way; `lose`: (turn, sample) of a frame the link lost."""
+    record = guide._Record()
+    seq, stamp = 65530, 2 ** 32 - 50_000
+    for k, turn in enumerate(turns):
+        for i, rate in enumerate(turn.gyro_dps):
+            if i == 0 and k > 0:
+                continue                      # the previous turn's last frame
+            if (k, i) == lose:
+                seq, stamp = (seq + 1) % 65536, (stamp + round(turn.dt[i - 1] * 1e6)) % 2 ** 32
+                continue
+            if i == 0 or i == len(turn.gyro_dps) - 1:
+                record.spans.append((len(record.frames), len(record.frames) + 1))
+            gx, gy, gz = (round(v / config.gyro_dps_per_lsb(range_dps)) for v in rate)
+            record.frames.append({"seq": seq, "stamp_us": stamp, "gx": gx, "gy": gy, "gz": gz})
+            seq = (seq + 1) % 65536
+            stamp = (stamp + round(turn.dt[min(i, len(turn.dt) - 1)] * 1e6)) % 2 ** 32
+    return record
+
+
+def test_the_recorded_turns_are_the_rates_between_the_positions_across_wraps():
+    turns = synthetic_turns(np.ones(3), np.zeros(3), noise_dps=0.0)     # (at rest where they meet)
+    ups = [turns[0].up_before] + [t.up_after for t in turns]
+    got = recorded(turns).turns(ups, 500)
+    assert len(got) == len(turns)
+    for g, t in zip(got, turns):
+        assert np.allclose(g.dt, t.dt, atol=1e-6)
+        assert np.abs(g.gyro_dps - t.gyro_dps).max() <= config.gyro_dps_per_lsb(500) / 2 + 1e-9
+        assert np.array_equal(g.up_before, t.up_before) and np.array_equal(g.up_after, t.up_after)
+
+
+def test_a_turn_with_a_frame_lost_on_the_link_is_left_out_and_said(capsys):
+    turns = synthetic_turns(np.ones(3), np.zeros(3), noise_dps=0.0)
+    ups = [turns[0].up_before] + [t.up_after for t in turns]
+    got = recorded(turns, lose=(2, 40)).turns(ups, 500)
+    assert len(got) == len(turns) - 1 and np.array_equal(got[2].up_before, turns[3].up_before)
+    assert "the turn from position 3 to 4: 1 IMU samples lost on the link, not used" in capsys.readouterr().out
+
+
 def test_the_gyro_scale_fit_refuses_turns_that_disagree():
     """A turn whose position after it was taken still moving: its up direction 3 deg off."""
     offset = np.zeros(3)
