@@ -150,11 +150,11 @@ class GyroScaleFit:
 
 def turned(turn: Turn, scale: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
     """The board's turn as a rotation matrix R (after-axes to before-axes: v_before = R
-    v_after), integrating the corrected rate between samples as their mean."""
+    v_after), each corrected rate held until the next sample (a turn starts and ends still)."""
     rate = np.radians((turn.gyro_dps - offset_dps) / scale)
     R = np.eye(3)
     for k, dt in enumerate(turn.dt):
-        R = R @ rotation.from_vector(0.5 * (rate[k] + rate[k + 1]) * dt)
+        R = R @ rotation.from_vector(rate[k] * dt)
     return R
 
 
