@@ -127,9 +127,9 @@ def test_the_gyro_scale_fit_needs_a_turn():
 
 
 def recorded(turns, range_dps=500, lose=None):
-    """The imu_raw frames a board streams through `turns` (each turn's first and last
-    sample the still positions' edges), 2 still frames per position between them; the
-    board's clock wrapping on the way; `lose`: (turn, sample) of a frame the link lost."""
+    """The imu_raw frames a board streams through `turns`, consecutive turns sharing the
+    sample where they meet, which stands for the still position there; seq and the board's
+    clock wrapping on the way; `lose`: (turn, sample) of a frame the link lost."""
     record = guide._Record()
     seq, stamp = 65530, 2 ** 32 - 50_000
     for k, turn in enumerate(turns):
@@ -164,7 +164,7 @@ def test_a_turn_with_a_frame_lost_on_the_link_is_left_out_and_said(capsys):
     ups = [turns[0].up_before] + [t.up_after for t in turns]
     got = recorded(turns, lose=(2, 40)).turns(ups, 500)
     assert len(got) == len(turns) - 1 and np.array_equal(got[2].up_before, turns[3].up_before)
-    assert "the turn from position 3 to 4: 1 IMU samples lost on the link, not used" in capsys.readouterr().out
+    assert "the turn from position 3 to 4: 1 of its IMU samples lost on the link, not used" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("off_deg, taken", [(0.8, True), (1.0, False)])

@@ -91,7 +91,8 @@ class _Record:
             seq = np.array([f["seq"] for f in part])
             lost = int(((np.diff(seq) - 1) % 65536).sum())
             if lost:
-                print(f"  the turn from position {k + 1} to {k + 2}: {lost} IMU samples lost on the link, not used")
+                print(f"  the turn from position {k + 1} to {k + 2}: {lost} of its IMU samples lost on the link, "
+                      "not used")
                 continue
             counts = np.array([[f["gx"], f["gy"], f["gz"]] for f in part], dtype=float)
             gyro = counts * config.gyro_dps_per_lsb(range_dps)
