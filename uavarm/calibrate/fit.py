@@ -127,7 +127,7 @@ def gyro_bias(windows: list[Window]) -> np.ndarray:
 # turns move per unit of its scale: 0.5 rad is 0.3 deg per percent, several times the error
 # of an up direction) and how well the turns must agree.
 GYRO_SCALE_SEEN_RAD = 0.5
-GYRO_TURN_RESIDUAL_MAX_DEG = 0.25  # rms over the turns of the up direction's misfit (1 deg off in one: 0.26)
+GYRO_TURN_RESIDUAL_MAX_DEG = 0.25  # rms over the turns of the up direction's misfit
 
 
 @dataclass(frozen=True)
