@@ -6,8 +6,8 @@ corrected readings of every position lie on the unit sphere. Bias and scale per 
 least-squares fit of |(reading - bias) / scale| = 1 over the positions (Gauss-Newton from the
 per-axis mid-points); the positions need not be exactly aligned with the axes.
 
-Gyro scale (the same session: the rates streamed while the board is turned from one
-position to the next): each axis reads scale x (true) + offset, the offset known from the
+Gyro scale (the same calibration run: the rates streamed while the board is turned from
+one position to the next): each axis reads scale x (true) + offset, the offset known from the
 still positions. The rates with the offset removed, divided by the scale and integrated
 over a turn, must carry the up direction seen before it (the accelerometer's, corrected)
 onto the one seen after it; the scales are the least-squares fit of that over the turns
