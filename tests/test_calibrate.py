@@ -69,7 +69,9 @@ UP = np.array([0.0, 0.0, 1.0])
 def synthetic_turns(scale, offset_dps, seed=0, noise_dps=0.02, rate_hz=100.0, seconds=1.5, around_vertical=0.0):
     """Turns between the FACES, as fit.Turn: each a smooth (smoothstep) rotation about one
     axis fixed in the board, plus `around_vertical` rad about the world's vertical, read by
-    a gyro of that scale and offset with white noise; the up directions from the rotations."""
+    a gyro of that scale (per axis, or a 3 x 3 gain: reading = gain @ rate) and offset with
+    white noise; the up directions from the rotations."""
+    gain = np.diag(scale) if np.ndim(scale) == 1 else np.asarray(scale)
     rng = np.random.default_rng(seed)
     held = FACES * Rotation.from_rotvec(rng.normal(0, 0.05, (6, 3)))
     turns = []
@@ -81,7 +83,7 @@ def synthetic_turns(scale, offset_dps, seed=0, noise_dps=0.02, rate_hz=100.0, se
         x = t / seconds
         speed = 6 * x * (1 - x) / seconds                      # d/dt of the smoothstep
         true_dps = np.degrees(speed[:, None] * phi)
-        read = scale * true_dps + offset_dps + rng.normal(0, noise_dps, true_dps.shape)
+        read = true_dps @ gain.T + offset_dps + rng.normal(0, noise_dps, true_dps.shape)
         turns.append(fit.Turn(read, np.diff(t), start.inv().apply(UP), end.inv().apply(UP)))
     return turns
 
@@ -93,12 +95,34 @@ def test_the_gyro_scale_fit_recovers_each_axis_from_the_turns():
     assert got.residual_deg < 0.05 and got.turns == 5
 
 
+# A gyro with the datasheet's largest cross-axis sensitivity (+-2 %): axis i reads
+# scale_i (rate_i + sum_j CROSS_ij rate_j).
+CROSS = np.array([[0.0, 0.02, -0.015], [-0.02, 0.0, 0.018], [0.012, -0.02, 0.0]])
+
+
+def test_the_gyro_fit_tells_the_scale_from_the_cross_axis_sensitivity():
+    scale, offset = np.array([1.027, 0.972, 1.011]), np.array([2.5, -1.7, 0.8])
+    got = fit.fit_gyro_scale(synthetic_turns(np.diag(scale) @ (np.eye(3) + CROSS), offset), offset)
+    assert np.abs(got.scale / scale - 1).max() < 5e-4
+    assert np.abs(got.cross_axis - CROSS).max() < 1e-3
+    assert got.residual_deg < 0.05
+
+
+def test_the_gyro_fit_refuses_a_cross_axis_sensitivity_no_mpu6050_has():
+    """5 % between two axes (an MPU-6050 has at most 2 %)."""
+    cross = CROSS.copy()
+    cross[1, 2] = 0.05
+    with pytest.raises(CalibrationError, match="cross-axis sensitivity of 5.0 %"):
+        fit.fit_gyro_scale(synthetic_turns(np.eye(3) + cross, np.zeros(3)), np.zeros(3))
+
+
 def test_the_gyro_scale_fit_is_blind_to_turns_about_the_vertical():
-    """Turning about the vertical on the way changes no up direction: the same scale."""
+    """Turning about the vertical on the way changes no up direction: the same scale (to 0.1 %,
+    the noise shared with the cross-axis terms fitted alongside)."""
     scale, offset = np.array([0.985, 1.02, 1.0]), np.zeros(3)
     plain = fit.fit_gyro_scale(synthetic_turns(scale, offset, seed=1), offset).scale
     spun = fit.fit_gyro_scale(synthetic_turns(scale, offset, seed=1, around_vertical=1.0), offset).scale
-    assert np.abs(plain / scale - 1).max() < 5e-4 and np.abs(spun / scale - 1).max() < 5e-4
+    assert np.abs(plain / scale - 1).max() < 1e-3 and np.abs(spun / scale - 1).max() < 1e-3
 
 
 def test_the_gyro_scale_fit_refuses_an_axis_never_turned_over():
@@ -167,20 +191,66 @@ def test_a_turn_with_a_frame_lost_on_the_link_is_left_out_and_said(capsys):
     assert "the turn from position 3 to 4: 1 of its IMU samples lost on the link, not used" in capsys.readouterr().out
 
 
+def drifting_record(scale, drift_deg, rate_hz=100.0, hold_s=2.0, turn_s=1.5, range_dps=500):
+    """A calibration's imu_raw frames and the positions' up directions (each the mean over
+    its samples, as the accelerometer gives it) for a board turned between the FACES by a
+    gyro of that scale, held at each position by a hand that drifts steadily `drift_deg`
+    over the hold about a horizontal axis of its own."""
+    rng = np.random.default_rng(3)
+    record, ups = guide._Record(), []
+    dt = 1.0 / rate_hz
+    R = FACES[0]
+    seq = 0
+
+    def stream(rates):
+        nonlocal R, seq
+        seen = []
+        for rate in rates:
+            gx, gy, gz = (round(v / config.gyro_dps_per_lsb(range_dps)) for v in np.degrees(scale * rate))
+            record.frames.append({"seq": seq, "stamp_us": round(seq * dt * 1e6), "gx": gx, "gy": gy, "gz": gz})
+            seen.append(R.inv().apply(UP))
+            R = R * Rotation.from_rotvec(rate * dt)         # held until the next sample
+            seq += 1
+        return np.array(seen)
+    for k in range(6):
+        if k:
+            phi = (R.inv() * FACES[k]).as_rotvec()
+            x = np.arange(0.0, turn_s, dt) / turn_s
+            stream((6 * x * (1 - x) / turn_s)[:, None] * phi)
+        axis = R.inv().apply(np.cross(UP, rng.normal(size=3)))   # horizontal, in the board's axes
+        drift = math.radians(drift_deg) / hold_s * axis / np.linalg.norm(axis)
+        first = len(record.frames)
+        up = stream(np.tile(drift, (round(hold_s * rate_hz), 1))).mean(axis=0)
+        record.spans.append((first, len(record.frames)))
+        ups.append(up / np.linalg.norm(up))
+    return record, ups
+
+
+@pytest.mark.parametrize("drift_deg", [0.0, 1.0, 3.0])
+def test_a_hand_drifting_while_holding_a_position_moves_no_scale(drift_deg):
+    """The turns run from the middle of one position's samples to the middle of the next's,
+    so the drift is in the gyro's rates as well as in the mean up directions."""
+    scale = np.array([1.02, 0.985, 1.01])
+    record, ups = drifting_record(scale, drift_deg)
+    got = fit.fit_gyro_scale(record.turns(ups, 500), np.zeros(3))
+    assert np.abs(got.scale / scale - 1).max() < 1e-3 and np.abs(got.cross_axis).max() < 1e-3
+
+
 @pytest.mark.parametrize("off_deg, taken", [(0.8, True), (1.0, False)])
 def test_the_gyro_scale_fit_refuses_turns_that_disagree(off_deg, taken):
-    """One of five positions `off_deg` away from where the turn into it ended (taken still
-    moving): 0.8 deg is within the fit's 0.25 deg rms of the up directions, 1 deg is not."""
+    """The second position's up direction `off_deg` away from where the first turn ended:
+    0.8 deg is within the fit's 0.25 deg rms of the up directions, 1 deg is not. (Elsewhere
+    in the sequence the cross-axis terms can take up more: docs/bring-up.md.)"""
     offset = np.zeros(3)
     turns = synthetic_turns(np.ones(3), offset)
-    bad = turns[2]
+    bad = turns[0]
     tilt = np.cross(bad.up_after, [0.3, 0.5, 0.8])
     tilt *= math.radians(off_deg) / np.linalg.norm(tilt)
-    turns[2] = fit.Turn(bad.gyro_dps, bad.dt, bad.up_before, Rotation.from_rotvec(tilt).apply(bad.up_after))
+    turns[0] = fit.Turn(bad.gyro_dps, bad.dt, bad.up_before, Rotation.from_rotvec(tilt).apply(bad.up_after))
     if taken:
         assert 0.2 < fit.fit_gyro_scale(turns, offset).residual_deg < fit.GYRO_TURN_RESIDUAL_MAX_DEG
     else:
-        with pytest.raises(CalibrationError, match="do not fit one gyro scale"):
+        with pytest.raises(CalibrationError, match="do not fit one gyro"):
             fit.fit_gyro_scale(turns, offset)
 
 

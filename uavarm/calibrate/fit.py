@@ -7,12 +7,14 @@ least-squares fit of |(reading - bias) / scale| = 1 over the positions (Gauss-Ne
 per-axis mid-points); the positions need not be exactly aligned with the axes.
 
 Gyro scale (the same calibration run: the rates streamed while the board is turned from
-one position to the next): each axis reads scale x (true) + offset, the offset known from the
-still positions. The rates with the offset removed, divided by the scale and integrated
-over a turn, must carry the up direction seen before it (the accelerometer's, corrected)
-onto the one seen after it; the scales are the least-squares fit of that over the turns
-(Gauss-Newton from 1). A turn about the vertical is not seen, so each axis must have turned
-about a horizontal direction, which turning the board from face to face does.
+one position to the next): the gyro reads G (true) + offset, the offset known from the still
+positions; G's diagonal is each axis's scale, its other entries the cross-axis sensitivity
+(each axis also reads up to 2 % of the rates about the other two, which alone would misfit
+the turns by about a degree). The rates with the offset removed, mapped through G's inverse
+and integrated over a turn, must carry the up direction seen before it (the accelerometer's,
+corrected) onto the one seen after it; G is the least-squares fit of that over the turns
+(Gauss-Newton from the identity). A turn about the vertical is not seen, so each axis must
+have turned about a horizontal direction, which turning the board from face to face does.
 
 Mounting: with the drone standing level the IMU's corrected reading is the base frame's up
 in IMU axes; for v_base = Rz(yaw) Ry(pitch) Rx(roll) v_imu that is (-sin p, sin r cos p,
@@ -125,9 +127,12 @@ def gyro_bias(windows: list[Window]) -> np.ndarray:
 
 # Gyro scale fit: how much each axis must have turned (how far the up directions after the
 # turns move per unit of its scale: 0.5 rad is 0.3 deg per percent, several times the error
-# of an up direction) and how well the turns must agree.
+# of an up direction), how well the turns must agree, and the largest cross-axis sensitivity
+# taken for the chip's (twice the datasheet's +-2 %; beyond it the turns, not the chip, are wrong).
 GYRO_SCALE_SEEN_RAD = 0.5
 GYRO_TURN_RESIDUAL_MAX_DEG = 0.25  # rms over the turns of the up direction's misfit
+GYRO_CROSS_AXIS_MAX = 0.04
+_TURN_HINT = "was a turn faster than the gyro's range, or the board knocked while held?"
 
 
 @dataclass(frozen=True)
@@ -143,54 +148,65 @@ class Turn:
 
 @dataclass(frozen=True)
 class GyroScaleFit:
-    scale: np.ndarray
+    scale: np.ndarray              # each axis's reading per unit of rate about it
+    cross_axis: np.ndarray         # (3, 3): axis i's reading per unit of rate about axis j, over its scale
     residual_deg: float            # rms misfit of the up direction after each turn
     turns: int
 
 
-def turned(turn: Turn, scale: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
+def turned(turn: Turn, unmix: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
     """The board's turn as a rotation matrix R (after-axes to before-axes: v_before = R
-    v_after), each corrected rate held until the next sample (a turn starts and ends still)."""
-    rate = np.radians((turn.gyro_dps - offset_dps) / scale)
+    v_after): the rates are unmix (reading - offset), each held until the next sample (a
+    turn starts and ends still)."""
+    rate = np.radians(turn.gyro_dps - offset_dps) @ unmix.T
     R = np.eye(3)
     for k, dt in enumerate(turn.dt):
         R = R @ rotation.from_vector(rate[k] * dt)
     return R
 
 
-def _up_misfit(turns: list[Turn], scale: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
+def _up_misfit(turns: list[Turn], unmix: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
     """Per turn, the up direction carried through the turn minus the one seen after it."""
-    return np.concatenate([turned(t, scale, offset_dps).T @ t.up_before - t.up_after for t in turns])
+    return np.concatenate([turned(t, unmix, offset_dps).T @ t.up_before - t.up_after for t in turns])
 
 
 def fit_gyro_scale(turns: list[Turn], offset_dps: np.ndarray) -> GyroScaleFit:
-    """Each gyro axis's scale from turns between still positions; CalibrationError if an
-    axis did not turn enough to tell, or the turns do not agree."""
+    """Each gyro axis's scale and cross-axis sensitivity from turns between still positions;
+    CalibrationError if an axis did not turn enough to tell, or the turns do not agree."""
     if not turns:
         raise CalibrationError("no turn between positions was streamed whole: is the link dropping frames?")
-    scale = np.ones(3)
+    unmix = np.eye(3)                  # G's inverse: the rates from the readings
     step_size = 1e-6
     for _ in range(20):
-        r = _up_misfit(turns, scale, offset_dps)
-        jac = np.stack([(_up_misfit(turns, scale + step_size * np.eye(3)[i], offset_dps) - r) / step_size
-                        for i in range(3)], axis=1)
+        r = _up_misfit(turns, unmix, offset_dps)
+        jac = np.stack([(_up_misfit(turns, unmix + step_size * np.eye(9)[i].reshape(3, 3), offset_dps) - r)
+                        / step_size for i in range(9)], axis=1)
         for axis, name in enumerate("XYZ"):
-            if np.linalg.norm(jac[:, axis]) < GYRO_SCALE_SEEN_RAD:
+            if np.linalg.norm(jac[:, 4 * axis]) < GYRO_SCALE_SEEN_RAD:
                 raise CalibrationError(f"the board hardly turned about the IMU's {name} axis (other than about the "
                                        "vertical), so its gyro scale cannot be told: turn it over that axis")
-        step, *_ = np.linalg.lstsq(jac, -r, rcond=None)
-        scale = scale + step
+        step, *_ = np.linalg.lstsq(jac, -r, rcond=None)   # (entries no turn shows stay as they are)
+        unmix = unmix + step.reshape(3, 3)
         if np.abs(step).max() < 1e-9:
             break
-    misfit = _up_misfit(turns, scale, offset_dps).reshape(-1, 3)
+    misfit = _up_misfit(turns, unmix, offset_dps).reshape(-1, 3)
     residual = float(np.degrees(np.sqrt(np.mean(np.sum(misfit ** 2, axis=1)))))
     if residual > GYRO_TURN_RESIDUAL_MAX_DEG:
-        raise CalibrationError(f"the turns do not fit one gyro scale (rms {residual:.2f} deg, at most "
-                               f"{GYRO_TURN_RESIDUAL_MAX_DEG}): was the board moving when a position was taken?")
+        raise CalibrationError(f"the turns do not fit one gyro (rms {residual:.2f} deg, at most "
+                               f"{GYRO_TURN_RESIDUAL_MAX_DEG}): {_TURN_HINT}")
+    try:
+        gain = np.linalg.inv(unmix)
+    except np.linalg.LinAlgError:
+        raise CalibrationError("the turns give no gyro at all: check the IMU and its range setting") from None
+    scale = np.diag(gain).copy()
     if not (GYRO_SCALE_RANGE[0] <= scale.min() and scale.max() <= GYRO_SCALE_RANGE[1]):
         raise CalibrationError(f"gyro scale {np.round(scale, 4)}: outside what an MPU-6050 can be "
                                f"({GYRO_SCALE_RANGE}); check the IMU and its range setting")
-    return GyroScaleFit(scale, residual, len(turns))
+    cross = gain / scale[:, None] - np.eye(3)
+    if np.abs(cross).max() > GYRO_CROSS_AXIS_MAX:
+        raise CalibrationError(f"the turns give a gyro cross-axis sensitivity of {np.abs(cross).max() * 100:.1f} % "
+                               f"(an MPU-6050 has at most 2 %): {_TURN_HINT}")
+    return GyroScaleFit(scale, cross, residual, len(turns))
 
 
 def mounting_from_gravity(up_imu: np.ndarray) -> tuple[float, float]:

@@ -84,10 +84,13 @@ class _Record:
 
     def turns(self, ups: list[np.ndarray], range_dps: int) -> list[fit.Turn]:
         """The turns between consecutive positions that were streamed whole (a lost frame
-        leaves a turn out, said so)."""
+        leaves a turn out, said so), each from the middle of one position's samples to the
+        middle of the next's: a position's mean up direction is where the board was then,
+        and whatever a hand drifted while holding it the gyro saw."""
         out = []
+        middle = [(a + b - 1) // 2 for a, b in self.spans]
         for k in range(len(self.spans) - 1):
-            part = self.frames[self.spans[k][1] - 1:self.spans[k + 1][0] + 1]
+            part = self.frames[middle[k]:middle[k + 1] + 1]
             seq = np.array([f["seq"] for f in part])
             lost = int(((np.diff(seq) - 1) % 65536).sum())
             if lost:
@@ -133,8 +136,9 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
     except CalibrationError as exc:
         print(f"gyro scale not measured, imu.gyro_scale left as it is: {exc}")
     else:
-        print(f"gyro scale ({', '.join(f'{s:.4f}' for s in scale.scale)}), fit rms {scale.residual_deg:.3f} deg "
-              f"over {scale.turns} turns")
+        print(f"gyro scale ({', '.join(f'{s:.4f}' for s in scale.scale)}), cross-axis sensitivity up to "
+              f"{np.abs(scale.cross_axis).max() * 100:.1f} % (measured, not corrected), fit rms "
+              f"{scale.residual_deg:.3f} deg over {scale.turns} turns")
         values["imu.gyro_scale"] = [round(float(s), 5) for s in scale.scale]
     return model_edit.write(model_path, values, confirm)
 
