@@ -473,6 +473,9 @@ def test_servo_calibration_finds_each_zero_and_direction(model_copy):
     def user(question):
         if question.startswith("Did joint"):
             j = int(question.split()[2]) - 1
+            end = time.monotonic() + 5.0
+            while abs(shafts[j].position - TRUTH_ZERO[j]) < guide.JOG_UNITS / 2 and time.monotonic() < end:
+                time.sleep(0.01)                      # the user answers once the joint has moved
             return (shafts[j].position - TRUTH_ZERO[j]) * TRUTH_DIRECTION[j] > 0   # what the user sees
         return True
     try:
