@@ -6,6 +6,8 @@ For each scenario: the range of joint 1's commanded angle once settled (2 s afte
 its steps of more than 20 deg between consecutive goals, the largest step, the moves whose
 path (every joint at the same speed, each arriving at its own time, 9 samples) passes a
 joint limit, the body plane or a leg, and the heartbeats that flag the target out of reach.
+Then targets going straight past joint 1's axis: the goals the firmware sends, tick by tick,
+against the target.
 """
 from __future__ import annotations
 
@@ -13,6 +15,7 @@ import math
 
 import numpy as np
 
+from uavarm.build import firmware
 from uavarm.link import messages
 from uavarm.sim import ax12_sim
 from uavarm.sim.board import Gravity, Rocking, SimBoard, baud_register
@@ -39,13 +42,19 @@ def joints(m, units):
     return direction * (np.asarray(units, dtype=float) - zero) * UNIT_RAD
 
 
-def unsafe(m, q):
-    """Poses q (N, 3) past a joint limit, not below the body plane, or in a leg's way."""
+def arm_points(m, q):
+    """Joint 3 and the end effector of poses q (N, 3), base frame, mm."""
     q1, q2, q3 = q[:, 0], q[:, 1], q[:, 2]
     out = np.stack([np.cos(q1), -np.sin(q1), np.zeros_like(q1)], axis=1)
     down = np.array([0.0, 0.0, -1.0])
     elbow = m.L1 * down + m.L2 * (np.sin(q2)[:, None] * out + np.cos(q2)[:, None] * down)
-    ee = elbow + m.L3 * (np.sin(q2 + q3)[:, None] * out + np.cos(q2 + q3)[:, None] * down)
+    return elbow, elbow + m.L3 * (np.sin(q2 + q3)[:, None] * out + np.cos(q2 + q3)[:, None] * down)
+
+
+def unsafe(m, q):
+    """Poses q (N, 3) past a joint limit, not below the body plane, or in a leg's way."""
+    q1 = q[:, 0]
+    elbow, ee = arm_points(m, q)
     lo = np.radians([l.min_deg for l in m.limits])
     hi = np.radians([l.max_deg for l in m.limits])
     bad = ~np.all((q >= lo - 1e-9) & (q <= hi + 1e-9), axis=1)
@@ -91,6 +100,33 @@ def run(m, motion, target, seconds, settle=2.0):
             "out": sum(map(bool, beats)), "beats": len(beats)}
 
 
+def axis_pass(m, miss, speed=300.0, side=60.0, depth=-130.0, facing_deg=-20.0):
+    """A target going straight past joint 1's axis `miss` mm from it at `speed` mm/s, from
+    `side` mm on one side (where joint 1 faces at `facing_deg`) to `side` mm on the other,
+    then still for 0.4 s: the goals the firmware's motion sends each tick (app_next_goal,
+    the host build), started facing the target. Returns (largest error, RMS error, joint 1's
+    range) in mm, mm, deg."""
+    ffi, lib = firmware.default()
+    a = math.radians(facing_deg)
+    start = np.array([side * math.cos(a), -side * math.sin(a)])
+    along, across = -start / side, np.array([math.sin(a), math.cos(a)]) * miss
+    step = speed / m.sample_rate
+    path = [np.array([*(start + s * along + across), depth]) for s in np.arange(step, 2 * side + step / 2, step)]
+    path += [path[-1]] * round(0.4 * m.sample_rate)
+    q = ffi.new("float[3]")
+    assert lib.kin_ik_nearest(list(map(float, path[0])), [a, 0.5, -0.5], q) == lib.KIN_OK
+    mo = ffi.new("motion_t *")
+    assert lib.motion_start(mo, list(q))
+    goals = []
+    for target in path:
+        sent = list(q)
+        lib.app_next_goal(mo, list(map(float, target)), False, sent, q)
+        goals.append(list(q))
+    goals = np.array(goals)
+    err = np.linalg.norm(arm_points(m, goals)[1] - np.array(path), axis=1)
+    return float(err.max()), float(np.sqrt(np.mean(err ** 2))), float(np.degrees(np.ptp(goals[:, 0])))
+
+
 def report(m) -> None:
     print("\nMotion on the simulated board (bench/motion.py): joint 1's commanded angle once settled, "
           "and every move's path judged by plain geometry.\n")
@@ -101,3 +137,10 @@ def report(m) -> None:
         r = run(m, motion, target, seconds)
         print(f"| {name} | {r['range']:.1f} | {r['jumps']} | {r['largest']:.1f} | {r['through']} of {r['moves']} "
               f"| {r['out']} of {r['beats']} |")
+    print("\nTargets going straight past joint 1's axis at 300 mm/s (bench/motion.py axis_pass), "
+          "from 60 mm on one side to 60 mm on the other, 130 mm down: the goals sent, tick by tick.\n")
+    print("| passes the axis at (mm) | largest error (mm) | RMS error (mm) | joint-1 range (deg) |")
+    print("|---:|---:|---:|---:|")
+    for miss in (1.0, 6.0, 10.0, 20.0, 30.0):      # (the other side is the mirror image)
+        worst, rms, turned = axis_pass(m, miss)
+        print(f"| {miss:g} | {worst:.1f} | {rms:.1f} | {turned:.0f} |")

@@ -16,6 +16,8 @@ from uavarm.link.arm_core import ArmCore, status_of
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 SPEED = 2.0
 
 

@@ -29,6 +29,8 @@ from uavarm.sim.board import Gravity, Rocking, Turning
 from uavarm.sim.imu_model import Mpu6050Sensor
 from uavarm.sim.sitl import Sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 SPEED = 2.0                        # simulated seconds per real second
 SECONDS = 1.0                      # real seconds of samples per position (2 simulated)
 # (roll, pitch) that put each IMU axis up, then down (IMU axes = base axes here)

@@ -22,6 +22,8 @@ from uavarm.sim.sitl import Sitl
 
 from test_calibrate import enabled_sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 SPEED = 2.0                        # simulated seconds per real second
 UNITS_PER_S = 180.0                # a goal ramp about the park speed's
 

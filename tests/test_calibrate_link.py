@@ -20,6 +20,8 @@ from uavarm.link import ArmLink
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 
 # ---------------------------------------------------------------- the board's answer
 

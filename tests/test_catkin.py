@@ -21,6 +21,8 @@ import pytest
 from conftest import ROOT, SYSTEM_ENV, catkin_workspace, free_port, stop_group
 from uavarm.sim.sitl import Sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 PACKAGE = ROOT / "ros" / "uavarm_ros"
 CLEAN_ENV = SYSTEM_ENV
 

@@ -104,6 +104,7 @@ def test_user_errors_are_one_line_without_a_traceback(argv, busy_port):
     assert_clean_error(proc, *finished(proc))
 
 
+@pytest.mark.realtime
 def test_port_vanishing_during_monitor():
     """The SITL stops (as a board unplugged) while `monitor` is printing its heartbeats."""
     sitl = Sitl(speed=2.0)

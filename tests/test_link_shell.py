@@ -14,6 +14,8 @@ from uavarm.link.shell import ShellError, parse, run_shell
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 SPEED = 2.0          # simulated seconds per real second
 
 

@@ -17,6 +17,8 @@ from uavarm.link import ArmLink, CommandRefused, LinkGarbled, LinkSilent, PortNo
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
+pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+
 SPEED = 2.0          # simulated seconds per real second
 TARGET = (60.0, 20.0, -120.0)
 

@@ -211,10 +211,10 @@ def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
     ("frame_gap = 0.05", "frame_gap = 0", "link.frame_gap", "positive"),
     ("transit_speed_rpm = 30.0", "transit_speed_rpm = 0.0", "servo.transit_speed_rpm", ">= 0.111"),
     ("transit_speed_rpm = 30.0", "", "servo.transit_speed_rpm", "missing"),
-    ("axis_hold_radius = 10.0", "axis_hold_radius = -1.0", "motion.axis_hold_radius", "negative"),
-    ("axis_release_radius = 15.0", "axis_release_radius = 5.0", "motion.axis_release_radius",
-     "at least axis_hold_radius (10.0)"),
-    ("axis_release_radius = 15.0", "axis_release_radius = 140.0", "motion.axis_release_radius",
+    ("axis_hold_radius = 3.0", "axis_hold_radius = -1.0", "motion.axis_hold_radius", "negative"),
+    ("axis_release_radius = 5.0", "axis_release_radius = 2.0", "motion.axis_release_radius",
+     "at least axis_hold_radius (3.0)"),
+    ("axis_release_radius = 5.0", "axis_release_radius = 140.0", "motion.axis_release_radius",
      "less than the arm's reach"),
     ("follow_window_deg = 90.0", "follow_window_deg = 181.0", "motion.follow_window_deg", "<= 180"),
     ("stretch_margin = 1.0", "stretch_margin = 20.0", "motion.stretch_margin", "<= 13.8"),
@@ -238,7 +238,7 @@ def test_new_keys_load(model):
     assert model.servo_return_delay_us == 20 and model.servo_boot_time == 0.1
     assert (model.park_speed_rpm, model.transit_speed_rpm, model.working_speed_rpm) == (10.0, 30.0, 59.0)
     m = model.motion
-    assert (m.axis_hold_radius, m.axis_release_radius, m.follow_window_deg, m.stretch_margin) == (10.0, 15.0, 90.0, 1.0)
+    assert (m.axis_hold_radius, m.axis_release_radius, m.follow_window_deg, m.stretch_margin) == (3.0, 5.0, 90.0, 1.0)
     assert model.park_deg == (0.0, 60.0, -110.0)
     assert (model.link_silence_timeout, model.heartbeat_period, model.link_frame_gap) == (1.0, 0.5, 0.05)
     assert (model.imu_address, model.accel_range_g, model.gyro_range_dps, model.dlpf_bandwidth) == \

@@ -25,7 +25,8 @@ from uavarm.sim.sitl import Sitl
 
 SPEED = 2.0                          # simulated seconds per real second
 TARGET_M = (0.060, 0.020, -0.120)
-pytestmark = pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning")   # rospy's own
+pytestmark = [pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),   # rospy's own
+              pytest.mark.realtime]   # a simulated board on the wall clock: run apart (Makefile)
 
 
 # ------------------------------------------------------------------ without ROS

@@ -297,6 +297,7 @@ def test_the_servo_stream_carries_each_reply_while_the_arm_moves():
 
 # ---------------------------------------------------------------- from the command line
 
+@pytest.mark.realtime
 def test_the_command_line_limps_stiffens_and_jogs_a_sitl():
     import subprocess
     import sys

@@ -220,10 +220,9 @@ def test_each_scenario_closes_the_loop(scenario, att_rms_deg):
 
 
 def test_bench_tilting_follows_a_target_that_crosses_joint_1s_axis():
-    """Seed 0 of the bench scenario carries the target round and across joint 1's axis 17 s
-    after engage (joint 1 at its follow window's edge, then held as the target passes 4 mm
-    from the axis, then the target on the far side for the rest of the run). The arm picks it
-    up there: few ticks out of reach and a few millimetres RMS, where an arm left at the
+    """Seed 0 of the bench scenario carries the target round and close past joint 1's axis
+    17 s after engage, then on the far side for the rest of the run. The arm picks it up
+    there: few ticks out of reach and a few millimetres RMS, where an arm left at the
     window's edge scores tens of millimetres and is out of reach from then on."""
     run = _run("bench", settings=sim.Settings(seconds=20.0, settle=5.0, preflight=2.0))
     m = run.metrics()

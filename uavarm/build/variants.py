@@ -9,6 +9,8 @@ ignored by the loader, so a preset never silently measures the wrong firmware.
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import re
 import tomllib
@@ -150,6 +152,14 @@ class Variant:
     gen_dir: Path
 
 
+@contextlib.contextmanager
+def _exclusive(lock_path: Path):
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock_path, "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        yield
+
+
 def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Variant:
     """Generate and build the firmware of the edited model (cached by content)."""
     if not changes and Path(base) == config.DEFAULT_MODEL:
@@ -166,14 +176,15 @@ def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Vari
     model_path = out / "manipulator.toml"
     gen_dir = out / "generated"
     stamp = out / "done"
-    if not stamp.exists():
-        out.mkdir(parents=True, exist_ok=True)
-        model_path.write_text(text)
-        try:
-            files = generate.render(model_path)
-        except config.ModelError as exc:
-            raise VariantError(str(exc)) from None
-        generate.write(files, gen_dir)
-        stamp.write_text("".join(f"{k} = {_toml_value(v)}\n" for k, v in changes.items()))
+    with _exclusive(SIM_BUILD / f"{digest}.lock"):   # parallel runs build a variant once
+        if not stamp.exists():
+            out.mkdir(parents=True, exist_ok=True)
+            model_path.write_text(text)
+            try:
+                files = generate.render(model_path)
+            except config.ModelError as exc:
+                raise VariantError(str(exc)) from None
+            generate.write(files, gen_dir)
+            stamp.write_text("".join(f"{k} = {_toml_value(v)}\n" for k, v in changes.items()))
     ffi, lib = firmware.load(gen_dir)
     return Variant(config.load(model_path), ffi, lib, dict(changes), gen_dir)
