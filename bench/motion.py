@@ -100,7 +100,10 @@ def run(m, motion, target, seconds, settle=2.0):
             "out": sum(map(bool, beats)), "beats": len(beats)}
 
 
-def axis_pass(m, miss, speed=300.0, side=60.0, depth=-130.0, facing_deg=-20.0):
+PASS_SPEED, PASS_SIDE, PASS_DEPTH = 300.0, 60.0, -130.0    # mm/s, mm, mm: axis_pass's target
+
+
+def axis_pass(m, miss, speed=PASS_SPEED, side=PASS_SIDE, depth=PASS_DEPTH, facing_deg=-20.0):
     """A target going straight past joint 1's axis `miss` mm from it at `speed` mm/s, from
     `side` mm on one side (where joint 1 faces at `facing_deg`) to `side` mm on the other,
     then still for 0.4 s: the goals the firmware's motion sends each tick (app_next_goal,
@@ -137,8 +140,9 @@ def report(m) -> None:
         r = run(m, motion, target, seconds)
         print(f"| {name} | {r['range']:.1f} | {r['jumps']} | {r['largest']:.1f} | {r['through']} of {r['moves']} "
               f"| {r['out']} of {r['beats']} |")
-    print("\nTargets going straight past joint 1's axis at 300 mm/s (bench/motion.py axis_pass), "
-          "from 60 mm on one side to 60 mm on the other, 130 mm down: the goals sent, tick by tick.\n")
+    print(f"\nTargets going straight past joint 1's axis at {PASS_SPEED:g} mm/s (bench/motion.py axis_pass), "
+          f"from {PASS_SIDE:g} mm on one side to {PASS_SIDE:g} mm on the other, {-PASS_DEPTH:g} mm down: "
+          "the goals sent, tick by tick.\n")
     print("| passes the axis at (mm) | largest error (mm) | RMS error (mm) | joint-1 range (deg) |")
     print("|---:|---:|---:|---:|")
     for miss in (1.0, 6.0, 10.0, 20.0, 30.0):      # (the other side is the mirror image)
