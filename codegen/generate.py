@@ -62,7 +62,8 @@ def _trig_free(exprs, angles=kinematics.JOINT_SYMBOLS, c_angles=Q, names=("s1", 
 
 
 def _bind(exprs, symbols, c_names):
-    return [sp.sympify(e).subs({s: sp.Symbol(n) for s, n in zip(symbols, c_names)}) for e in exprs]
+    rename = {s: sp.Symbol(n) for s, n in zip(symbols, c_names)}
+    return [sp.sympify(e).xreplace(rename) for e in exprs]
 
 
 def _function(outputs, symbols, c_names, prefix="t", **trig):

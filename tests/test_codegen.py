@@ -1,8 +1,11 @@
 """The generated tree: fresh, deterministic, float32-only, builds for the Cortex-M4, and
 follows the model file when a user edits it."""
+import functools
+import os
 import re
 import shutil
 import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -14,6 +17,21 @@ from uavarm.codegen import board_ioc, generate
 from uavarm.model import config, kinematics
 
 GENERATED = ROOT / "generated"
+render_uncached = generate.render
+
+
+@functools.cache
+def rendered(model_path, text: str) -> dict[str, str]:
+    return render_uncached(model_path)
+
+
+@pytest.fixture(autouse=True)
+def render_once(monkeypatch):
+    """The SymPy behind a render takes seconds: each model file's text is rendered once here,
+    whichever test asks (`generate.main` included)."""
+    def render(model_path=config.DEFAULT_MODEL):
+        return dict(rendered(model_path, model_path.read_text()))
+    monkeypatch.setattr(generate, "render", render)
 
 
 def test_committed_tree_is_fresh(tmp_path):
@@ -24,8 +42,12 @@ def test_committed_tree_is_fresh(tmp_path):
     assert sorted(p.name for p in GENERATED.iterdir()) == sorted(files)
 
 
-def test_output_is_deterministic():
-    assert generate.render() == generate.render()
+def test_output_is_deterministic(tmp_path):
+    """Another process, with another hash seed (set and dict orders differ), writes the same text."""
+    env = dict(os.environ, PYTHONHASHSEED="12345")
+    subprocess.run([sys.executable, "-m", "uavarm.codegen", "--out", str(tmp_path)], env=env, check=True,
+                   capture_output=True)
+    assert {p.name: p.read_text() for p in tmp_path.iterdir()} == generate.render()
 
 
 def test_headers_say_where_they_came_from(model):

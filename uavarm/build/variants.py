@@ -160,6 +160,21 @@ def _exclusive(lock_path: Path):
         yield
 
 
+def edited_text(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> str:
+    text = Path(base).read_text()
+    for key, value in changes.items():
+        text = edit_text(text, key, value, str(base))
+    return text
+
+
+def model_of(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> config.Model:
+    """The edited model as the loader reads it, without generating or building anything."""
+    try:
+        return config.parse(edited_text(changes, base).encode(), Path(base))
+    except config.ModelError as exc:
+        raise VariantError(str(exc)) from None
+
+
 def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Variant:
     """Generate and build the firmware of the edited model (cached by content)."""
     if not changes and Path(base) == config.DEFAULT_MODEL:
@@ -167,9 +182,7 @@ def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Vari
         firmware.generated.check_current(model)     # generated/ is this model's (make codegen)
         ffi, lib = firmware.default()
         return Variant(model, ffi, lib, {}, firmware.generated.GENERATED)
-    text = Path(base).read_text()
-    for key, value in changes.items():
-        text = edit_text(text, key, value, str(base))
+    text = edited_text(changes, base)
     from ..codegen import generate   # imports SymPy: only when a variant is really built
     digest = hashlib.sha256((text + generate._templates_digest()).encode()).hexdigest()[:16]
     out = SIM_BUILD / digest

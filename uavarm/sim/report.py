@@ -236,10 +236,11 @@ def sim_command(args) -> int:
         if args.show:   # a starting point for a scenario file of one's own
             print(scenarios.dump(scenario), end="")
             return 0
-        changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
-        ignored = variants.unused(variants.edits(None, args.sets), variants.build(changes).model.estimator)
-        if ignored:
+        changes = variants.edits(args.estimator, args.sets)
+        ignored = variants.unused(variants.edits(None, args.sets), variants.model_of(changes).estimator)
+        if ignored:   # said before the build, which takes a while
             raise variants.VariantError("--set " + "; ".join(ignored))
+        changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
     except (variants.VariantError, scenarios.ScenarioError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
