@@ -17,7 +17,7 @@ codegen: $(STAMP)
 # Every core for the tests that only compute; then, alone, the ones whose simulated board
 # keeps time with the wall clock (a loaded machine would make its heartbeats late).
 test: $(STAMP)
-	$(PY) -m pytest -q -n auto -m "not realtime"
+	$(PY) -m pytest -q -n auto --dist worksteal -m "not realtime"
 	$(PY) -m pytest -q -m realtime
 
 bench: $(STAMP)

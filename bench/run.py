@@ -115,10 +115,10 @@ def tilting_imu(m, n=N_TICKS):
     return raw
 
 
-def tick_bench_build():
+def tick_bench_build(gen_dir=generated.GENERATED):
     """bench/tick_bench.c with every application and generated source, for the M4 counter."""
     sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
-    incs = [f"-I{d}" for d in (generated.GENERATED, firmware.APP / "Inc")]
+    incs = [f"-I{d}" for d in (gen_dir, firmware.APP / "Inc")]
     return m4.build(sources, ["bench_run", "bench_message"], cflags=target.M4_CFLAGS + incs)
 
 
@@ -127,8 +127,7 @@ def whole_tick(m):
     gen = tick_bench_build()
     ref = m4.build([str(BENCH / "reference.c")], ["ref_run"], cflags=target.M4_CFLAGS + target.reference_defines(m))
     raw = tilting_imu(m, N_TICKS + 1)   # the firmware's warm-up tick on the first sample, then N_TICKS
-    idle = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(0)], ret="int")
-    run = gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(1)], ret="int")
+    idle, run = tick_runs(gen, raw)
     base = ref.call("ref_run", [m4.Arr("int32", raw[6:]), m4.U32(N_TICKS), m4.Arr("float", [60.0, 20.0, -120.0]),
                                 m4.Arr("uint32", 3)], ret="int")
     if not (idle.ret and run.ret and base.ret):
@@ -155,6 +154,8 @@ def whole_tick(m):
     print(f"| ratio reference / firmware arithmetic | | {ref_tick / arithmetic:.1f}x | | |")
     print("\nLargest shares of the firmware tick (est. cycles, exclusive):",
           ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:14]))
+    print(f"\nWith the gyro's cross-axis sensitivity calibrated (imu.gyro_cross_axis not zero: a 3x3 product "
+          f"per sample instead of three scales): whole tick {cross_axis_tick(raw):.0f} est. cycles.")
     messages = []
     for which, name, fused in ((1, "drone_attitude", m.estimator.drone_attitude),
                                (2, "drone_velocity", m.estimator.drone_velocity)):
@@ -168,6 +169,22 @@ def whole_tick(m):
     if messages:
         print("\nOne drone message fused by the stabiliser (main loop, between ticks; est. cycles): "
               + ", ".join(messages) + ". Both streams are fresh in the ticks above, as in flight.")
+
+
+def tick_runs(gen, raw):
+    """The tick bench without ticks (the main loop's idle passes) and with them."""
+    return [gen.call("bench_run", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(ticks)], ret="int")
+            for ticks in (0, 1)]
+
+
+def cross_axis_tick(raw) -> float:
+    """The whole tick of the model file with a calibrated cross-axis sensitivity (+-2 %)."""
+    from uavarm.build import variants
+    cross = [[0.0, 0.015, -0.02], [0.012, 0.0, 0.008], [-0.018, 0.019, 0.0]]
+    idle, run = tick_runs(tick_bench_build(variants.build({"imu.gyro_cross_axis": cross}).gen_dir), raw)
+    if not (idle.ret and run.ret):
+        raise SystemExit("tick bench: the run with the cross-axis calibrated did not complete")
+    return (run.cycles - idle.cycles) / N_TICKS
 
 
 def target_size():

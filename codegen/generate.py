@@ -331,6 +331,10 @@ def params_context(m: config.Model):
     ms = lambda s: round(s * 1000)
     lsb_per_g = config.accel_lsb_per_g(m.accel_range_g)
     gyro_rad_per_lsb = sp.pi * sp.Rational(m.gyro_range_dps, 32768) / 180      # gyro_dps_per_lsb
+    cal = m.imu_calibration
+    gyro_k = [gyro_rad_per_lsb / sp.nsimplify(sc, rational=True) for sc in cal.gyro_scale]
+    undo_cross = (sp.eye(3) + sp.Matrix(3, 3, lambda i, j: sp.nsimplify(cal.gyro_cross_axis[i][j],
+                                                                       rational=True))).inv()
     return {
         "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
         "tuck": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in tuck(m)],
@@ -363,12 +367,14 @@ def params_context(m: config.Model):
         "accel_c": [float32_literal(-sp.nsimplify(b, rational=True) / sp.nsimplify(sc, rational=True))
                     for b, sc in zip(m.imu_calibration.accel_bias, m.imu_calibration.accel_scale)],
         # calibrated: counts * rad_per_lsb / scale, per IMU axis (the offset is the estimator's)
-        "gyro_k": [float32_literal(gyro_rad_per_lsb / sp.nsimplify(sc, rational=True))
-                   for sc in m.imu_calibration.gyro_scale],
-        # the estimator's starting gyro bias, base axes, rad/s: the offset as the scaled rate reads it
-        "gyro_bias0": [float32_literal(v) for v in attitude.mounting(m) * sp.Matrix(
+        "gyro_k": [float32_literal(k) for k in gyro_k],
+        # ... and the cross-axis sensitivity undone: rad/s = (I + C)^-1 diag(gyro_k) counts
+        "gyro_cross": any(c != 0 for row in cal.gyro_cross_axis for c in row),
+        "gyro_w": [[float32_literal(w) for w in undo_cross.row(i) * sp.diag(*gyro_k)] for i in range(3)],
+        # the estimator's starting gyro bias, base axes, rad/s: the offset as the calibrated rate reads it
+        "gyro_bias0": [float32_literal(v) for v in attitude.mounting(m) * undo_cross * sp.Matrix(
             [sp.pi * sp.nsimplify(d, rational=True) / (180 * sp.nsimplify(sc, rational=True))
-             for d, sc in zip(m.imu_calibration.gyro_bias_dps, m.imu_calibration.gyro_scale)])],
+             for d, sc in zip(cal.gyro_bias_dps, cal.gyro_scale)])],
         "est": estimator_params(m),
     }
 

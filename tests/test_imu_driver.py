@@ -175,3 +175,42 @@ def test_dlpf_puts_the_propeller_band_well_below_its_corner_without_lagging_a_ti
     accel_bw, accel_delay_ms, gyro_bw, gyro_delay_ms, _ = DLPF_TABLE[dlpf_cfg_of_model()]
     assert PROPELLER_BAND_HZ[0] >= 2 * max(accel_bw, gyro_bw)
     assert max(accel_delay_ms, gyro_delay_ms) <= 1000 / MODEL.sample_rate
+
+
+@pytest.mark.parametrize("cross", [None, [[0.0, 0.015, -0.02], [0.012, 0.0, 0.008], [-0.018, 0.019, 0.0]]],
+                         ids=["no cross-axis", "cross-axis"])
+def test_the_firmware_undoes_the_calibrated_bias_and_scale_and_starts_from_the_gyro_offset(cross):
+    """The calibrated reading undone: the accelerometer's (counts / 8192 - bias) / scale; the
+    gyro's rates solved from reading = diag(scale) (I + C) rate (numpy), the estimator's
+    starting bias the offset solved the same way."""
+    from uavarm.build import variants
+    bias, scale, gyro_dps = [0.05, -0.03, 0.07], [1.02, 0.98, 1.01], [1.5, -2.0, 0.75]
+    gyro_scale = [1.025, 0.97, 1.004]
+    edits = {"imu.accel_bias": bias, "imu.accel_scale": scale, "imu.gyro_bias_dps": gyro_dps,
+             "imu.gyro_scale": gyro_scale}
+    if cross:
+        edits["imu.gyro_cross_axis"] = cross
+    v = variants.build(edits)
+    reads = np.diag(gyro_scale) @ (np.eye(3) + np.array(cross or np.zeros((3, 3))))
+    ffi, lib, m = v.ffi, v.lib, v.model
+    hp = ffi.new("host_port_t *")
+    lib.host_port_init(hp, m.servo_baud, m.imu_address)
+    Mpu6050(memoryview(ffi.buffer(hp.imu_regs)))
+    port = ffi.addressof(hp[0], "port")
+    assert lib.mpu_init(port, m.imu_address)
+    counts = [3000, -7000, 9500]                                 # what the chip reads (8192 counts/g)
+    gyro_counts = [6550, -13100, 655]                            # 65.536 counts per deg/s at +-500
+    words = counts + [0] + gyro_counts                           # temperature between
+    hp.imu_regs[0x3B:0x3B + 14] = b"".join(w.to_bytes(2, "big", signed=True) for w in words)   # ACCEL_XOUT_H..
+    hp.imu_regs[0x3A] = 0x01                                     # INT_STATUS: DATA_RDY
+    out = ffi.new("mpu_sample_t *")
+    assert lib.mpu_sample(port, m.imu_address, out)
+    expected = [(c / 8192 - b) / s for c, b, s in zip(counts, bias, scale)]
+    assert list(out.accel_g) == pytest.approx(expected, abs=2e-7)
+    rates = np.linalg.solve(reads, np.radians(np.array(gyro_counts) / 65.536))
+    assert list(out.gyro_rad_s) == pytest.approx(rates, rel=1e-6, abs=1e-7)
+    stab = ffi.new("stab_t *")
+    lib.stab_reset(stab)
+    lib.stab_sample(stab, [0.0, 0.0, 1.0], [0.0, 0.0, 0.0], 0, False)
+    # the offset as the calibrated rate reads it (mounting: identity)
+    assert list(stab.quat.bias) == pytest.approx(np.linalg.solve(reads, np.radians(gyro_dps)), abs=1e-6)

@@ -114,7 +114,8 @@ def test_many_unknown_keys_are_counted(tmp_path):
 def test_calibration_keys_may_be_absent(tmp_path):
     text = BASE
     for line in ("accel_bias = [0.0, 0.0, 0.0]\n", "accel_scale = [1.0, 1.0, 1.0]\n",
-                 "gyro_bias_dps = [0.0, 0.0, 0.0]\n", "gyro_scale = [1.0, 1.0, 1.0]\n"):
+                 "gyro_bias_dps = [0.0, 0.0, 0.0]\n", "gyro_scale = [1.0, 1.0, 1.0]\n",
+                 "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]\n"):
         assert line in text
         text = text.replace(line, "", 1)
     line = "response_lag = 0.0265\n"
@@ -137,7 +138,8 @@ def test_every_other_key_is_required(tmp_path):
         for k, v in node.items():
             (stack.append((f"{prefix}{k}.", v)) if isinstance(v, dict) else leaves.append(f"{prefix}{k}"))
     assert sorted(leaves) == sorted(config.KNOWN_KEYS)
-    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps", "imu.gyro_scale", "servo.response_lag"}
+    optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps", "imu.gyro_scale", "imu.gyro_cross_axis",
+                "servo.response_lag"}
     for key in leaves:
         doc = tomlkit.parse(BASE)
         *tables, name = key.split(".")
@@ -188,6 +190,18 @@ def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
     ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 190.0, 0.0]", "imu.mounting_rpy[1]", "within"),
     ("gyro_scale = [1.0, 1.0, 1.0]", "gyro_scale = [1.0, 1.2, 1.0]", "imu.gyro_scale[1]", "within [0.9, 1.1]"),
     ("gyro_scale = [1.0, 1.0, 1.0]", "gyro_scale = [1.0, 1.0]", "imu.gyro_scale", "expected 3 scale factors"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.01, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis", "expected 3 rows"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [0.0, 0.0, 0.0]", "imu.gyro_cross_axis", "expected 3 rows"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[0]",
+     "expected 3 sensitivities"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[1][1]",
+     "must be 0"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0, 0.05], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[0][2]",
+     "within [-0.04, 0.04]"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [nan, 0.0, 0.0]]", "imu.gyro_cross_axis[2][0]",
+     "finite number"),
+    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", 'gyro_cross_axis = [[0.0, "0.01", 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]', "imu.gyro_cross_axis[0][1]",
+     "finite number"),
     ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, -80.0]", "mount.offset", "expected 3 lengths"),
     ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, 0.0, -2e4]", "mount.offset[2]", "within"),
     ("offset = [0.0, 0.0, -80.0]", "", "mount.offset", "missing"),

@@ -40,8 +40,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import rotation
-from ..model.config import (ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, GYRO_SCALE_RANGE, accel_lsb_per_g,
-                            gyro_dps_per_lsb)
+from ..model.config import (ACCEL_BIAS_MAX_G, ACCEL_SCALE_RANGE, GYRO_CROSS_AXIS_MAX, GYRO_SCALE_RANGE,
+                            accel_lsb_per_g, gyro_dps_per_lsb)
 
 # A still window: the spread of the readings no more than the sensor's noise allows
 # (400 ug/sqrt(Hz) through the 21 Hz DLPF is about 2 mg rms; 0.005 deg/s/sqrt(Hz) 0.02 deg/s).
@@ -127,11 +127,10 @@ def gyro_bias(windows: list[Window]) -> np.ndarray:
 
 # Gyro scale fit: how much each axis must have turned (how far the up directions after the
 # turns move per unit of its scale: 0.5 rad is 0.3 deg per percent, several times the error
-# of an up direction), how well the turns must agree, and the largest cross-axis sensitivity
-# taken for the chip's (twice the datasheet's +-2 %; beyond it the turns, not the chip, are wrong).
+# of an up direction) and how well the turns must agree. A cross-axis sensitivity beyond the
+# model file's GYRO_CROSS_AXIS_MAX (twice the datasheet's) means the turns, not the chip, are wrong.
 GYRO_SCALE_SEEN_RAD = 0.5
 GYRO_TURN_RESIDUAL_MAX_DEG = 0.25  # rms over the turns of the up direction's misfit
-GYRO_CROSS_AXIS_MAX = 0.04
 _TURN_HINT = "was a turn faster than the gyro's range, or the board knocked while held?"
 
 

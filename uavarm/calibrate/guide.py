@@ -106,7 +106,7 @@ class _Record:
 
 def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
     """Accelerometer bias and scale from six still positions, the gyro's zero-rate offset,
-    and its scale from the turns between them."""
+    and its scale and cross-axis sensitivity from the turns between them."""
     model = config.load(model_path)
     record = _Record()
     arm.stream(imu_every=1)
@@ -134,12 +134,14 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
     try:
         scale = fit.fit_gyro_scale(record.turns([u / np.linalg.norm(u) for u in ups], model.gyro_range_dps), gyro)
     except CalibrationError as exc:
-        print(f"gyro scale not measured, imu.gyro_scale left as it is: {exc}")
+        print(f"gyro scale not measured, imu.gyro_scale and imu.gyro_cross_axis left as they are: {exc}")
     else:
         print(f"gyro scale ({', '.join(f'{s:.4f}' for s in scale.scale)}), cross-axis sensitivity up to "
-              f"{np.abs(scale.cross_axis).max() * 100:.1f} % (measured, not corrected), fit rms "
-              f"{scale.residual_deg:.3f} deg over {scale.turns} turns")
+              f"{np.abs(scale.cross_axis).max() * 100:.1f} %, fit rms {scale.residual_deg:.3f} deg over "
+              f"{scale.turns} turns")
         values["imu.gyro_scale"] = [round(float(s), 5) for s in scale.scale]
+        values["imu.gyro_cross_axis"] = [[0.0 if i == j else round(float(c), 4) for j, c in enumerate(row)]
+                                         for i, row in enumerate(scale.cross_axis)]
     return model_edit.write(model_path, values, confirm)
 
 

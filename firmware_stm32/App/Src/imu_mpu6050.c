@@ -59,9 +59,15 @@ bool mpu_sample(const port_t *port, uint8_t address, mpu_sample_t *out)
     out->accel_g[0] = (float)ax * MODEL_ACCEL_K_X + MODEL_ACCEL_C_X;   /* calibrated (model file) */
     out->accel_g[1] = (float)ay * MODEL_ACCEL_K_Y + MODEL_ACCEL_C_Y;
     out->accel_g[2] = (float)az * MODEL_ACCEL_K_Z + MODEL_ACCEL_C_Z;
+#if MODEL_GYRO_CROSS_AXIS
+    static const float W[3][3] = { { MODEL_GYRO_W_X }, { MODEL_GYRO_W_Y }, { MODEL_GYRO_W_Z } };
+    const float x = (float)gx, y = (float)gy, z = (float)gz;
+    for (int i = 0; i < 3; ++i) out->gyro_rad_s[i] = W[i][0] * x + W[i][1] * y + W[i][2] * z;
+#else
     out->gyro_rad_s[0] = (float)gx * MODEL_GYRO_K_X;
     out->gyro_rad_s[1] = (float)gy * MODEL_GYRO_K_Y;
     out->gyro_rad_s[2] = (float)gz * MODEL_GYRO_K_Z;
+#endif
     out->fresh = (burst[0] & MPU_INT_DATA_RDY) != 0u;
     /* (| rather than ||: no branch per axis) */
     out->saturated = (full_scale(ax) | full_scale(ay) | full_scale(az)
