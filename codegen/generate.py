@@ -338,6 +338,9 @@ def params_context(m: config.Model):
     return {
         "park": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in m.park_deg],
         "tuck": [float32_literal(sp.rad(sp.nsimplify(d, rational=True))) for d in tuck(m)],
+        "leg_planes": [float32_literal(a) for a in collision.leg_planes(m)],
+        "leg_half_width": float32_literal(sp.rad(sp.nsimplify(m.leg_half_width, rational=True))),
+        "leg_distance": float32_literal(m.leg_distance),
         "park_speed": servo.speed_units(m.park_speed_rpm),
         "transit_speed": servo.speed_units(m.transit_speed_rpm),
         "working_speed": servo.speed_units(m.working_speed_rpm),

@@ -177,6 +177,9 @@ def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
 
 # --- servo, park, link and IMU keys ---------------------------------------------------------
 
+NO_CROSS = "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]"
+
+
 @pytest.mark.parametrize("old, new, key, words", [
     ("accel_range_g = 4 ", "accel_range_g = 3 ", "imu.accel_range_g", "one of [2, 4, 8, 16]"),
     ("accel_range_g = 4 ", "accel_range_g = 4.0 ", "imu.accel_range_g", "expected an integer"),
@@ -190,17 +193,17 @@ def test_bauds_no_ax12a_register_gives_are_refused(tmp_path, baud):
     ("mounting_rpy = [0.0, 0.0, 0.0]", "mounting_rpy = [0.0, 190.0, 0.0]", "imu.mounting_rpy[1]", "within"),
     ("gyro_scale = [1.0, 1.0, 1.0]", "gyro_scale = [1.0, 1.2, 1.0]", "imu.gyro_scale[1]", "within [0.9, 1.1]"),
     ("gyro_scale = [1.0, 1.0, 1.0]", "gyro_scale = [1.0, 1.0]", "imu.gyro_scale", "expected 3 scale factors"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.01, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis", "expected 3 rows"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [0.0, 0.0, 0.0]", "imu.gyro_cross_axis", "expected 3 rows"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[0]",
+    (NO_CROSS, "gyro_cross_axis = [[0.0, 0.01, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis", "expected 3 rows"),
+    (NO_CROSS, "gyro_cross_axis = [0.0, 0.0, 0.0]", "imu.gyro_cross_axis", "expected 3 rows"),
+    (NO_CROSS, "gyro_cross_axis = [[0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[0]",
      "expected 3 sensitivities"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[1][1]",
+    (NO_CROSS, "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[1][1]",
      "must be 0"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0, 0.05], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[0][2]",
+    (NO_CROSS, "gyro_cross_axis = [[0.0, 0.0, 0.05], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "imu.gyro_cross_axis[0][2]",
      "within [-0.04, 0.04]"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [nan, 0.0, 0.0]]", "imu.gyro_cross_axis[2][0]",
+    (NO_CROSS, "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [nan, 0.0, 0.0]]", "imu.gyro_cross_axis[2][0]",
      "finite number"),
-    ("gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]", 'gyro_cross_axis = [[0.0, "0.01", 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]', "imu.gyro_cross_axis[0][1]",
+    (NO_CROSS, 'gyro_cross_axis = [[0.0, "0.01", 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]]', "imu.gyro_cross_axis[0][1]",
      "finite number"),
     ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, -80.0]", "mount.offset", "expected 3 lengths"),
     ("offset = [0.0, 0.0, -80.0]", "offset = [0.0, 0.0, -2e4]", "mount.offset[2]", "within"),
@@ -330,6 +333,8 @@ GYRO_LSB_PER_DPS_NOMINAL = {250: 131.0, 500: 65.5, 1000: 32.8, 2000: 16.4}
 DLPF_CFG = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}
 
 PARAMS_VARIANT = {
+    "leg_angles = [45.0, -45.0, 135.0, -135.0]": "leg_angles = [30.0, -150.0, 100.0]",
+    "leg_half_width = 10.0": "leg_half_width = 8.0",
     "sample_rate = 100.0": "sample_rate = 200.0",
     "i2c_address = 0x68": "i2c_address = 0x69",
     "accel_range_g = 4 ": "accel_range_g = 16 ",
@@ -347,11 +352,16 @@ PARAMS_VARIANT = {
 }
 
 
+def _number(value):
+    value = value.rstrip("uf") if not value.startswith("0x") else value.rstrip("u")
+    return int(value, 0) if re.fullmatch(r"-?(0x[0-9a-fA-F]+|\d+)", value) else float(value)
+
+
 def _defines(text):
+    """Each MODEL_ #define's number, or tuple of numbers for a list (an initializer)."""
     out = {}
-    for name, value in re.findall(r"^#define (MODEL_\w+)\s+(\S+)", text, re.M):
-        value = value.rstrip("uf") if not value.startswith("0x") else value.rstrip("u")
-        out[name] = int(value, 0) if re.fullmatch(r"-?(0x[0-9a-fA-F]+|\d+)", value) else float(value)
+    for name, value in re.findall(r"^#define (MODEL_\w+)\s+([^\s,]+(?:, [^\s,]+)*)", text, re.M):
+        out[name] = tuple(map(_number, value.split(", "))) if ", " in value else _number(value)
     return out
 
 
@@ -395,6 +405,18 @@ def test_mpu_registers_follow_the_datasheet(params):
     assert _as_f32(d["MODEL_SAMPLE_PERIOD_S"]) == _as_f32(1 / imu["sample_rate"])
     assert d["MODEL_TICK_US"] == 1_000_000 / imu["sample_rate"]
     assert _as_f32(d["MODEL_COMPLEMENTARY_GYRO_WEIGHT"]) == _as_f32(raw["estimator"]["complementary_gyro_weight"])
+
+
+def test_leg_values_are_the_collision_tables(params):
+    """The legs' planes folded onto [0, 180) deg (legs half a turn apart block one plane),
+    in radians; the half width in radians; the distance in mm."""
+    raw, d = params
+    c = raw["collision"]
+    want = sorted({a % 180.0 for a in c["leg_angles"]})
+    assert d["MODEL_LEG_PLANES"] == len(want)
+    assert [_as_f32(g) for g in d["MODEL_LEG_PLANE_ANGLES"]] == [_as_f32(math.radians(a)) for a in want]
+    assert _as_f32(d["MODEL_LEG_HALF_WIDTH"]) == _as_f32(math.radians(c["leg_half_width"]))
+    assert d["MODEL_LEG_DISTANCE"] == c["leg_distance"]
 
 
 def test_servo_link_and_park_values(params):

@@ -387,3 +387,83 @@ def test_a_refused_step_is_offered_smaller_in_the_written_order(far):
         assert LIB.motion_smaller(m, smaller), k
         np.testing.assert_allclose(list(smaller), want, atol=2e-6, err_msg=f"try {k}")
     assert not LIB.motion_smaller(m, FFI.new("float[3]"))
+
+
+# ---------------------------------------------------------------- targets past a leg's reach
+
+LEG = math.radians(45.0)   # a leg of the model file (collision.leg_angles)
+
+
+def toward(q1, rho, z):
+    """The point rho mm from joint 1's axis, at depth z, that joint 1 faces at angle q1."""
+    return np.array([rho * math.cos(q1), -rho * math.sin(q1), z])
+
+
+def nearest_allowed(p):
+    """Plain geometry: how far p, in a leg's sector past the leg distance, is from where the end
+    effector may be: across the sector's nearer edge (its vertical plane), or in p's own plane
+    pulled in to the leg distance."""
+    q1 = math.atan2(-p[1], p[0])
+    rho = math.hypot(p[0], p[1])
+    into = math.radians(MODEL.leg_half_width) - abs(q1 - LEG)
+    assert into > 0 and rho > MODEL.leg_distance
+    return min(rho * math.sin(into), rho - MODEL.leg_distance)
+
+
+def follow_for(q, target, ticks):
+    """The goals app.c would send, tick by tick, following a fixed target from pose q."""
+    m = started(q)
+    sent, q_next = FFI.new("float[3]", list(map(float, q))), FFI.new("float[3]")
+    goals = []
+    for _ in range(ticks):
+        LIB.app_next_goal(m, list(map(float, target)), False, sent, q_next)
+        sent[0:3] = list(q_next)
+        goals.append(np.array(list(q_next)))
+    return m, np.array(goals)
+
+
+@pytest.mark.parametrize("into_deg", [1.0, 4.0, 7.0, 10.0], ids=lambda d: f"{d:.0f} deg into the sector")
+@pytest.mark.parametrize("rho", [101.5, 104.0, 108.0], ids=lambda r: f"{r:.1f} mm out")
+@pytest.mark.parametrize("side", [-1.0, 1.0], ids=["from below", "from above"])
+def test_a_target_past_a_legs_reach_is_aimed_at_the_nearest_allowed_point(into_deg, rho, side):
+    """A fixed target in a leg's sector beyond the leg distance, the arm coming from 15 deg
+    outside the sector's edge at the same reach: once settled, the goal is safe and the end effector
+    is within 1.5 mm of the nearest place it may be (the sector's edge or the leg distance,
+    whichever is nearer; 1.5 mm: the goal margins' 0.2 deg and 1 mm inside the distance)."""
+    z = -100.0
+    edge = LEG + side * math.radians(MODEL.leg_half_width)
+    target = toward(edge - side * math.radians(into_deg), rho, z)
+    q0, *_ = branch_ik(MODEL, toward(edge + side * math.radians(15.0), rho, z), [edge, 0.5, -1.0], -1.0, hold=False)
+    assert safe(q0, MARGIN)
+    _, goals = follow_for(q0, target, 150)
+    assert all(safe(q) for q in goals)
+    off = np.linalg.norm(ee(goals[-1]) - target)
+    print(f"\n{into_deg:.0f} deg into the sector, {rho:.1f} mm out: {off:.2f} mm off, "
+          f"nearest allowed {nearest_allowed(target):.2f} mm")
+    assert off <= nearest_allowed(target) + 1.5
+
+
+def test_a_target_crossing_a_legs_sector_is_aimed_edge_inside_edge_without_dithering():
+    """A target 104 mm out swept across a leg's sector, 0.5 deg a tick: aimed at the edge it
+    comes in over, then, deeper in, inside the leg distance (5 mm off instead of up to 18),
+    then at the far edge, each once. Held where the edge and the leg distance are about as
+    near and shaken +-0.4 deg (+-0.7 mm) tick by tick, the aim does not flip between them."""
+    z, rho, hw = -100.0, 104.0, math.radians(MODEL.leg_half_width)
+    q, *_ = branch_ik(MODEL, toward(LEG - hw - math.radians(5.0), rho, z), [LEG, 0.5, -1.0], -1.0, hold=False)
+    m = started(q)
+    aims = []
+    for deg in np.arange(-14.0, 14.5, 0.5):
+        tick(m, toward(LEG + math.radians(deg), rho, z))
+        aims.append(m.leg_aim)
+    runs = [a for k, a in enumerate(aims) if k == 0 or a != aims[k - 1]]
+    assert runs == [LIB.MOTION_LEG_NONE, LIB.MOTION_LEG_EDGE, LIB.MOTION_LEG_INSIDE, LIB.MOTION_LEG_EDGE,
+                    LIB.MOTION_LEG_NONE], aims
+    even = LEG - hw + (rho - MODEL.leg_distance) / rho        # edge and leg distance about as near
+    m = started(q)
+    for deg in np.arange(-14.0, -0.4, 0.5):
+        tick(m, toward(even + math.radians(deg), rho, z))
+    shaken = set()
+    for k in range(60):
+        tick(m, toward(even + math.radians(0.4 if k % 2 else -0.4), rho, z))
+        shaken.add(m.leg_aim)
+    assert len(shaken) == 1 and shaken != {LIB.MOTION_LEG_NONE}, shaken

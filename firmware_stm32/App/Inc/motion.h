@@ -33,6 +33,9 @@ extern "C" {
 #define MOTION_GOAL_MARGIN 0.0035f
 
 /* cffi:begin */
+#define MOTION_LEG_NONE 0          /* no leg in the way of the aim */
+#define MOTION_LEG_EDGE 1          /* aimed at a leg sector's edge */
+#define MOTION_LEG_INSIDE 2        /* aimed inside a leg's distance, in the target's plane */
 #define MOTION_VIAS 2              /* a route's corners before its aim */
 #define MOTION_ROUTE_PIECES 512    /* most swept checks one route's planning may take */
 
@@ -48,6 +51,7 @@ typedef struct {
     bool arrived;                  /* at the aim since it was set (then following at speed) */
     float elbow;                   /* +1 or -1: the elbow sign of the branch followed */
     bool q1_held;                  /* the target is near joint 1's axis: joint 1 holds */
+    uint8_t leg_aim;               /* MOTION_LEG_*: where a target past a leg's reach is aimed */
     unsigned given_up;             /* KIN_BRANCH_* of the latest following */
     float share;                   /* the latest step's share of the way to its destination */
     uint8_t tries;                 /* smaller steps offered since (motion_smaller) */
@@ -81,7 +85,10 @@ typedef enum { MOTION_PARK_SPEED = 0, MOTION_TRANSIT_SPEED = 1, MOTION_WORKING_S
  * is made up for in joint 1's plane only); joint 1 stays within the model's follow_window
  * of where the goal put it (further round, the arm reaches in the plane at the window's
  * edge, and goes over to the far side of the axis once the target's plane, faced half a
- * turn over, is within half the window); given_up says what was given up (KIN_BRANCH_*). Then one step toward the next
+ * turn over, is within half the window); a target in a landing leg's sector past the leg
+ * distance is aimed at the nearer of the sector's edge and the leg distance in its plane
+ * (leg_aim), kept until the other is 2 mm nearer; given_up says what was given up
+ * (KIN_BRANCH_*). Then one step toward the next
  * corner or the aim, all joints in proportion: at the park speed unless following, the
  * transit speed until the arm is at its aim, then the working speed. The caller checks it
  * (kin_check_move from the last goal, MOTION_GOAL_MARGIN), asks motion_smaller for less

@@ -142,6 +142,71 @@ bool motion_head_for(motion_t *m, const float p_base[3], const float p_level[3])
     return true;
 }
 
+/* Inside a landing leg's sector (joint 1 within its half width, either way round) the arm
+ * must keep within the leg distance. A target it may not reach there is aimed at the nearer
+ * of two points the arm may hold: at the sector's edge, or in the target's plane pulled in to
+ * the leg distance; the one taken is kept until the other is LEG_SWITCH nearer (no flipping
+ * between two poses centimetres apart on noise). An aim that is not clear falls back to the
+ * other, then to the step checks. */
+#define LEG_EDGE (MODEL_LEG_HALF_WIDTH + 2.0f * MOTION_GOAL_MARGIN)   /* rad from a leg's plane */
+#define LEG_INSIDE (MODEL_LEG_DISTANCE - 1.0f)                         /* mm from joint 1's axis */
+#define LEG_SWITCH 2.0f                                                /* mm */
+
+#if MODEL_LEG_PLANES > 0
+/* Joint 1's angle from the nearest leg's plane, in (-pi/2, pi/2]. */
+static float leg_offset(float q1)
+{
+    static const float PLANES[MODEL_LEG_PLANES] = { MODEL_LEG_PLANE_ANGLES };
+    float best = FM_PI;
+    for (int k = 0; k < MODEL_LEG_PLANES; ++k) {
+        float d = q1 - PLANES[k];
+        while (d > 0.5f * FM_PI) d -= FM_PI;
+        while (d <= -0.5f * FM_PI) d += FM_PI;
+        if (fabsf(d) < fabsf(best)) best = d;
+    }
+    return best;
+}
+#endif
+
+/* (Not inlined: the tick's usual case, a target inside the leg distance, stays short.) */
+static __attribute__((noinline)) void clear_of_legs(motion_t *m, const float p[3], float rho2)
+{
+#if MODEL_LEG_PLANES > 0
+    const float d = leg_offset(m->aim[0]);
+    if (!(fabsf(d) < LEG_EDGE) || aim_clear(m->aim)) {
+        m->leg_aim = MOTION_LEG_NONE;
+        return;
+    }
+    const float rho = sqrtf(rho2);
+    const float turn = (d > 0.0f ? LEG_EDGE : -LEG_EDGE) - d;   /* to the sector's nearer edge */
+    const float to_edge = rho * fabsf(turn);                     /* (sin x ~ x: |x| < 0.2 rad) */
+    const float to_inside = rho - LEG_INSIDE;
+    uint8_t pick = to_edge < to_inside ? MOTION_LEG_EDGE : MOTION_LEG_INSIDE;
+    if (m->leg_aim != MOTION_LEG_NONE && fabsf(to_edge - to_inside) < LEG_SWITCH) pick = m->leg_aim;
+    float q[3], unused[3];
+    for (int tries = 0; tries < 2; ++tries, pick = MOTION_LEG_EDGE + MOTION_LEG_INSIDE - pick) {
+        if (pick == MOTION_LEG_EDGE) {
+            const float edge[3] = { m->aim[0] + turn, m->aim[1], m->aim[2] };
+            kin_ik_branch(p, edge, m->elbow, true, q, unused);
+        } else {
+            const float s = LEG_INSIDE / rho;
+            const float pulled[3] = { p[0] * s, p[1] * s, p[2] };
+            kin_ik_branch(pulled, m->aim, m->elbow, true, q, unused);
+        }
+        if (aim_clear(q)) {
+            memcpy(m->aim, q, sizeof m->aim);
+            m->leg_aim = pick;
+            return;
+        }
+    }
+    m->leg_aim = MOTION_LEG_NONE;
+#else
+    (void)p;
+    (void)rho2;
+    m->leg_aim = MOTION_LEG_NONE;
+#endif
+}
+
 /* Aim at target p_base on the followed branch (motion.h, motion_tick). */
 static inline void follow(motion_t *m, const float p_base[3], bool pinned)
 {
@@ -167,6 +232,11 @@ static inline void follow(motion_t *m, const float p_base[3], bool pinned)
         const float edge[3] = { m->home + (off > 0.0f ? MODEL_FOLLOW_WINDOW : -MODEL_FOLLOW_WINDOW), m->from[1], m->from[2] };
         float unused[3];
         m->given_up |= kin_ik_branch(p_base, edge, m->elbow, true, m->aim, unused) | KIN_BRANCH_Q1;
+    }
+    if (rho2 > LEG_INSIDE * LEG_INSIDE) {   /* (NaN: not) */
+        clear_of_legs(m, p_base, rho2);
+    } else {
+        m->leg_aim = MOTION_LEG_NONE;
     }
 }
 
