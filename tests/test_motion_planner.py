@@ -467,3 +467,15 @@ def test_a_target_crossing_a_legs_sector_is_aimed_edge_inside_edge_without_dithe
         tick(m, toward(even + math.radians(0.4 if k % 2 else -0.4), rho, z))
         shaken.add(m.leg_aim)
     assert len(shaken) == 1 and shaken != {LIB.MOTION_LEG_NONE}, shaken
+
+
+@pytest.mark.parametrize("rho", [99.2, 99.4], ids=lambda r: f"{r:.1f} mm out")
+def test_a_target_in_a_legs_sector_the_arm_may_reach_is_reached(rho):
+    """Just inside the leg distance (the goal's margins clear of it), 5 deg into a leg's
+    sector: the target itself, not a point pulled further in."""
+    z, hw = -100.0, math.radians(MODEL.leg_half_width)
+    target = toward(LEG - hw + math.radians(5.0), rho, z)
+    q0, *_ = branch_ik(MODEL, toward(LEG - hw - math.radians(15.0), rho, z), [LEG, 0.5, -1.0], -1.0, hold=False)
+    m, goals = follow_for(q0, target, 150)
+    assert m.leg_aim == LIB.MOTION_LEG_NONE
+    assert np.linalg.norm(ee(goals[-1]) - target) < TOL_MM
