@@ -391,12 +391,8 @@ def test_a_refused_step_is_offered_smaller_in_the_written_order(far):
 
 # ---------------------------------------------------------------- targets past a leg's reach
 
-LEG = math.radians(45.0)   # a leg of the model file (collision.leg_angles)
-
-
-def toward(q1, rho, z):
-    """The point rho mm from joint 1's axis, at depth z, that joint 1 faces at angle q1."""
-    return np.array([rho * math.cos(q1), -rho * math.sin(q1), z])
+LEG, HW = MODEL.leg_angles[0], MODEL.leg_half_width   # deg: a leg of the model file, its sector's half width
+DEPTH = -100.0
 
 
 def nearest_allowed(p):
@@ -405,9 +401,15 @@ def nearest_allowed(p):
     pulled in to the leg distance."""
     q1 = math.atan2(-p[1], p[0])
     rho = math.hypot(p[0], p[1])
-    into = math.radians(MODEL.leg_half_width) - abs(q1 - LEG)
+    into = math.radians(HW) - abs(q1 - math.radians(LEG))
     assert into > 0 and rho > MODEL.leg_distance
     return min(rho * math.sin(into), rho - MODEL.leg_distance)
+
+
+def facing(deg, rho):
+    """A pose on the elbow-down branch reaching round_axis(deg, rho, DEPTH)."""
+    q, *_ = branch_ik(MODEL, round_axis(deg, rho, DEPTH), [math.radians(LEG), 0.5, -1.0], -1.0, hold=False)
+    return q
 
 
 def follow_for(q, target, ticks):
@@ -430,10 +432,9 @@ def test_a_target_past_a_legs_reach_is_aimed_at_the_nearest_allowed_point(into_d
     outside the sector's edge at the same reach: once settled, the goal is safe and the end effector
     is within 1.5 mm of the nearest place it may be (the sector's edge or the leg distance,
     whichever is nearer; 1.5 mm: the goal margins' 0.2 deg and 1 mm inside the distance)."""
-    z = -100.0
-    edge = LEG + side * math.radians(MODEL.leg_half_width)
-    target = toward(edge - side * math.radians(into_deg), rho, z)
-    q0, *_ = branch_ik(MODEL, toward(edge + side * math.radians(15.0), rho, z), [edge, 0.5, -1.0], -1.0, hold=False)
+    edge = LEG + side * HW
+    target = round_axis(edge - side * into_deg, rho, DEPTH)
+    q0 = facing(edge + side * 15.0, rho)
     assert safe(q0, MARGIN)
     _, goals = follow_for(q0, target, 150)
     assert all(safe(q) for q in goals)
@@ -448,23 +449,23 @@ def test_a_target_crossing_a_legs_sector_is_aimed_edge_inside_edge_without_dithe
     comes in over, then, deeper in, inside the leg distance (5 mm off instead of up to 18),
     then at the far edge, each once. Held where the edge and the leg distance are about as
     near and shaken +-0.4 deg (+-0.7 mm) tick by tick, the aim does not flip between them."""
-    z, rho, hw = -100.0, 104.0, math.radians(MODEL.leg_half_width)
-    q, *_ = branch_ik(MODEL, toward(LEG - hw - math.radians(5.0), rho, z), [LEG, 0.5, -1.0], -1.0, hold=False)
+    rho = 104.0
+    q = facing(LEG - HW - 5.0, rho)
     m = started(q)
     aims = []
     for deg in np.arange(-14.0, 14.5, 0.5):
-        tick(m, toward(LEG + math.radians(deg), rho, z))
+        tick(m, round_axis(LEG + deg, rho, DEPTH))
         aims.append(m.leg_aim)
     runs = [a for k, a in enumerate(aims) if k == 0 or a != aims[k - 1]]
     assert runs == [LIB.MOTION_LEG_NONE, LIB.MOTION_LEG_EDGE, LIB.MOTION_LEG_INSIDE, LIB.MOTION_LEG_EDGE,
                     LIB.MOTION_LEG_NONE], aims
-    even = LEG - hw + (rho - MODEL.leg_distance) / rho        # edge and leg distance about as near
+    even = LEG - HW + math.degrees((rho - MODEL.leg_distance) / rho)   # edge and leg distance about as near
     m = started(q)
     for deg in np.arange(-14.0, -0.4, 0.5):
-        tick(m, toward(even + math.radians(deg), rho, z))
+        tick(m, round_axis(even + deg, rho, DEPTH))
     shaken = set()
     for k in range(60):
-        tick(m, toward(even + math.radians(0.4 if k % 2 else -0.4), rho, z))
+        tick(m, round_axis(even + (0.4 if k % 2 else -0.4), rho, DEPTH))
         shaken.add(m.leg_aim)
     assert len(shaken) == 1 and shaken != {LIB.MOTION_LEG_NONE}, shaken
 
@@ -473,9 +474,7 @@ def test_a_target_crossing_a_legs_sector_is_aimed_edge_inside_edge_without_dithe
 def test_a_target_in_a_legs_sector_the_arm_may_reach_is_reached(rho):
     """Just inside the leg distance (the goal's margins clear of it), 5 deg into a leg's
     sector: the target itself, not a point pulled further in."""
-    z, hw = -100.0, math.radians(MODEL.leg_half_width)
-    target = toward(LEG - hw + math.radians(5.0), rho, z)
-    q0, *_ = branch_ik(MODEL, toward(LEG - hw - math.radians(15.0), rho, z), [LEG, 0.5, -1.0], -1.0, hold=False)
-    m, goals = follow_for(q0, target, 150)
+    target = round_axis(LEG - HW + 5.0, rho, DEPTH)
+    m, goals = follow_for(facing(LEG - HW - 15.0, rho), target, 150)
     assert m.leg_aim == LIB.MOTION_LEG_NONE
     assert np.linalg.norm(ee(goals[-1]) - target) < TOL_MM

@@ -240,7 +240,7 @@ def sim_command(args) -> int:
         ignored = variants.unused(variants.edits(None, args.sets), variants.model_of(changes).estimator)
         if ignored:   # said before the build, which takes a while
             raise variants.VariantError("--set " + "; ".join(ignored))
-        changes = build_variants([args.estimator or "model"], args.sets)[args.estimator or "model"]
+        build_variants([args.estimator or "model"], args.sets)
     except (variants.VariantError, scenarios.ScenarioError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
