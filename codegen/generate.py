@@ -256,6 +256,12 @@ def estimator_context(m: config.Model):
                      r + (inv2,), r_c + ["inv2"], prefix="u")
     quat_step = {"lines": raw_step["lines"] + norm["lines"] + unit["lines"],
                  "ops": raw_step["ops"] + norm["ops"] + unit["ops"]}
+    q_gyro, rate_gyro = quaternion.propagate_unnormalised(m)
+    raw_gyro = _function([(f"const float {r_c[i]}", q_gyro[i]) for i in range(4)]
+                         + [(f"e->rate[{i}]", rate_gyro[i]) for i in range(3)],
+                         Q + B + gyro + (attitude.DT,), q_c + b_c + gyro_c + ["dt"])
+    quat_propagate = {"lines": raw_gyro["lines"] + norm["lines"] + unit["lines"],
+                      "ops": raw_gyro["ops"] + norm["ops"] + unit["ops"]}
     quat_gate = _function([("const float gate", quaternion.accel_gate(m))], Q + acc + (quaternion.INNOVATION,),
                           q_c + acc_c + ["innovation_scale"], prefix="g")
     corr, err = quaternion.link_error()
@@ -265,13 +271,17 @@ def estimator_context(m: config.Model):
                      qh_c + ["sr", "cr", "sp", "cp"] + [f"fc_error[{i}]" for i in range(3)] + ["k_link"])
     vec = lambda name: [f"{name}[{i}]" for i in range(3)]
     vel_predict = _function([(f"const float n{i}", v) for i, v in enumerate(velocity.predict(m))],
-                            velocity.VEL + acc + U + W + (attitude.DT,), vec("v") + acc_c + vec("up") + vec("rate") + ["dt"],
-                            prefix="p")
+                            velocity.VEL + velocity.ACC_BIAS + acc + U + W + (attitude.DT,),
+                            vec("e->v") + vec("e->accel_bias") + acc_c + vec("up") + vec("rate") + ["dt"], prefix="p")
     innov_e, innov_turn = velocity.innovation(m)
     vel_innovation = _function([(f"e[{i}]", v) for i, v in enumerate(innov_e)]
                                + [(f"turn[{i}]", v) for i, v in enumerate(innov_turn)],
                                QH + velocity.V_LEVEL + W + velocity.VEL_H,
                                qh_c + vec("v_level") + vec("rate") + vec("v_hist"), prefix="i")
+    vel_along = _function([(f"r[{i}]", v) for i, v in enumerate(velocity.along_up())], QH + velocity.INNOV,
+                          qh_c + vec("e"), prefix="a")
+    accel_bias_up = _function([(f"bias[{i}]", v) for i, v in enumerate(velocity.accel_bias_update(m))],
+                              velocity.ACC_BIAS + velocity.ALONG + (velocity.K_A,), vec("bias") + vec("r") + ["k_a"])
     quat_turn = _function([(f"const float r{i}", v) for i, v in enumerate(velocity.turned())], Q + velocity.TURN,
                           [f"q[{i}]" for i in range(4)] + vec("turn"), prefix="t")
     q_arg = [f"q[{i}]" for i in range(4)]
@@ -285,11 +295,14 @@ def estimator_context(m: config.Model):
     est_rate = quaternion.rate_of(m)
     return {
         "quat_step": quat_step,
+        "quat_propagate": quat_propagate,
         "quat_gate": quat_gate,
         "quat_link": link,
         "quat_left": left,
         "vel_predict": vel_predict,
         "vel_innovation": vel_innovation,
+        "vel_along": vel_along,
+        "accel_bias_update": accel_bias_up,
         "quat_turn": quat_turn,
         "bias_update": bias_up,
         "quat_from_acc": _function([(f"q[{i}]", up_acc[i]) for i in range(4)], acc, acc_c),
@@ -402,7 +415,9 @@ def estimator_params(m: config.Model):
         "history": int(sp.ceiling(sp.nsimplify(e.link_delay_max, rational=True) * sp.nsimplify(m.sample_rate, rational=True))) + 2,
         "lead_time": float32_literal(e.lead_time),
         "drone_velocity": int(e.drone_velocity),
-        "vel": {k: float32_literal(v) for k, v in velocity.gains(e.velocity_bandwidth).items()},
+        "vel": {k: float32_literal(v) for k, v in {**velocity.gains(e.velocity_bandwidth),
+                                                   **velocity.accel_bias_gains(e.accel_bias_bandwidth)}.items()},
+        "accel_bias": int(e.accel_bias_bandwidth > 0),
         "link_gain_with_velocity": float32_literal(e.link_gain_with_velocity),
         "link_bias_gain_with_velocity": float32_literal(e.link_bias_gain_with_velocity),
         "fc_error_gain": float32_literal(e.fc_error_gain),

@@ -68,7 +68,7 @@ _KEYS_BY_TABLE = {
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
                  "link_bias_gain link_delay_min link_delay_max link_timeout lead_time drone_velocity "
                  "velocity_bandwidth link_gain_with_velocity link_bias_gain_with_velocity fc_error_gain "
-                 "fc_error_max_deg",
+                 "fc_error_max_deg accel_bias_bandwidth accel_bias_max_g",
 }
 UNKNOWN_KEYS_NAMED = 5
 KNOWN_KEYS = tuple(f"{table}.{name}" for table, names in _KEYS_BY_TABLE.items() for name in names.split())
@@ -212,6 +212,8 @@ class Estimator:
     link_bias_gain_with_velocity: float  # link_bias_gain while the velocity is fresh too
     fc_error_gain: float           # 1/s: the flight controller's error learnt from its disagreement
     fc_error_max_deg: float        # deg: the clamp of the flight controller's estimated error
+    accel_bias_bandwidth: float    # rad/s: the accelerometer's bias learnt along up (0: not learnt)
+    accel_bias_max_g: float        # g: the clamp of its estimate
 
 
 class _Reader:
@@ -550,6 +552,8 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
                                               hi=sample_rate / 2),
         fc_error_gain=r.number(k + "fc_error_gain", nonnegative=True, hi=10.0),
         fc_error_max_deg=r.number(k + "fc_error_max_deg", nonnegative=True, hi=10.0),
+        accel_bias_bandwidth=r.number(k + "accel_bias_bandwidth", nonnegative=True, hi=5.0),
+        accel_bias_max_g=r.number(k + "accel_bias_max_g", positive=True, hi=0.5),
     )
     if est.link_delay_min >= est.link_delay_max:
         raise r.fail(k + "link_delay_min", f"must be less than link_delay_max ({est.link_delay_max}), "

@@ -150,6 +150,13 @@ def step_unnormalised(m: Model):
     return q_raw, b_next, rate
 
 
+def propagate_unnormalised(m: Model):
+    """(q_raw (4), rate (3)): the step with the accelerometer's gains 0, the gyro alone (in
+    flight while the drone's messages correct the attitude); the bias is left as it is."""
+    w = sp.Matrix(rate_of(m))
+    return qmul(Q, delta(tuple(c * DT for c in w))), list(w)
+
+
 def from_up(u):
     """The quaternion of zero yaw whose up direction is u (the shortest arc from u to e_z);
     u = -e_z (upside down) has no unique one: roll pi then."""

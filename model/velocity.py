@@ -3,7 +3,8 @@ accelerated flight, and with it the slowly varying error of the flight controlle
 
 The estimator integrates the IMU's specific force into the IMU's velocity in base axes,
 
-    v <- v + dt (G (a - u) - w x v)          a = R_mount acc (g), u the estimate's up, w its rate
+    v <- v + dt (G (a - b_a - u) - w x v)    a = R_mount acc (g), u the estimate's up, w its rate,
+                                             b_a the estimate of the accelerometer's bias (g)
 
 so a tilt error d (rad, the estimate's up off by d) makes v drift from the true velocity at
 G d per second. Each drone_velocity message (level, heading-following frame, the centre of
@@ -31,6 +32,19 @@ the flight controller's attitude corrects at link_gain, its learnt error removed
 Gains from one bandwidth w_n (rad/s): pole placement on the small-angle error dynamics per
 axis (e_v' = G d - k_v e_v, d' = -k_t e_v - b, b' = k_b e_v, with d the tilt error and b the
 gyro bias error): a triple pole at -w_n, k_v = 3 w_n, k_t = 3 w_n^2 / G, k_b = w_n^3 / G.
+
+The accelerometer's bias: at one attitude its part across the up direction is a tilt error
+like any other (the loop above takes it as one: up to 0.3 deg for 5 mg), and only its part
+along up shows, as a vertical velocity drift. The up direction sweeps the body's axes as the
+drone tilts, so that drift, fed back along up, teaches every axis of the bias the tilts
+reach; the tilt error it left is then taken back by the loop above:
+
+    r = (u_h . e) u_h                         (the innovation along up, base axes)
+    v <- v + (k_u - k_v) h r                  (along up the velocity corrects at k_u instead)
+    b_a <- clamp(b_a - k_a h r, +-accel_bias_max)
+
+Gains from the bandwidth w_a along up (e_u' = -G b_u - k_u e_u, b_u' = k_a e_u): a double
+pole at -w_a, k_u = 2 w_a, k_a = w_a^2 / G (g per m/s per s); w_a = 0 leaves the bias at 0.
 """
 from __future__ import annotations
 
@@ -45,13 +59,17 @@ VEL = sp.symbols("vx vy vz", real=True)             # the estimate, base axes, m
 VEL_H = sp.symbols("hvx hvy hvz", real=True)        # the estimate at the message's measurement time
 V_LEVEL = sp.symbols("lx ly lz", real=True)         # the message: level, heading-following frame, m/s
 TURN = sp.symbols("tx ty tz", real=True)            # a small body-axes rotation, rad
+ACC_BIAS = sp.symbols("abx aby abz", real=True)     # the accelerometer's bias estimate, base axes, g
+INNOV = sp.symbols("ex ey ez", real=True)           # an innovation e, base axes, m/s
+ALONG = sp.symbols("rx ry rz", real=True)           # its part along up, base axes, m/s
+K_A = sp.Symbol("k_a", real=True)
 
 
 def predict(m: Model):
     """v after one sample of ACC (IMU axes, g) over DT, with UP and RATE the estimate's."""
-    a = mounting(m) * sp.Matrix(ACC)
+    a = mounting(m) * sp.Matrix(ACC) - sp.Matrix(ACC_BIAS)
     u, w, v = sp.Matrix(UP), sp.Matrix(RATE), sp.Matrix(VEL)
-    return list(v + DT * (G * (a - u) - w.cross(v)))
+    return list(v + G * DT * (a - u) - DT * w.cross(v))   # (G dt) (a - b_a - u): one product per axis
 
 
 def innovation(m: Model):
@@ -64,6 +82,19 @@ def innovation(m: Model):
     return list(e), list(u_h.cross(e))
 
 
+def along_up():
+    """r (3): INNOV's part along the up direction of QH (unit)."""
+    u_h = up_of(QH)
+    along = u_h.dot(sp.Matrix(INNOV))
+    return [along * c for c in u_h]
+
+
+def accel_bias_update(m: Model):
+    """ACC_BIAS moved by -K_A * ALONG, clamped to the model's accel_bias_max_g."""
+    lim = sp.nsimplify(m.estimator.accel_bias_max_g, rational=True)
+    return [sp.Max(-lim, sp.Min(lim, ACC_BIAS[i] - K_A * ALONG[i])) for i in range(3)]
+
+
 def turned():
     """normalise(Q (x) (1, TURN / 2)): Q after a small rotation TURN in its own (body) axes."""
     return _normalised(qmul(Q, (sp.Integer(1),) + tuple(t / 2 for t in TURN)))
@@ -73,3 +104,9 @@ def gains(bandwidth: float) -> dict[str, sp.Expr]:
     """k_v (1/s), k_t (rad/s per m/s), k_b (rad/s^2 per m/s) of the bandwidth w_n (rad/s)."""
     w = sp.nsimplify(bandwidth, rational=True)
     return {"k_v": 3 * w, "k_t": 3 * w ** 2 / G, "k_b": w ** 3 / G}
+
+
+def accel_bias_gains(bandwidth: float) -> dict[str, sp.Expr]:
+    """k_u (1/s), k_a (g per m/s per s) of the bandwidth w_a (rad/s) along up."""
+    w = sp.nsimplify(bandwidth, rational=True)
+    return {"k_u": 2 * w, "k_a": w ** 2 / G}

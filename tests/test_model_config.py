@@ -236,6 +236,10 @@ NO_CROSS = "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
     ("follow_window_deg = 90.0", "follow_window_deg = 181.0", "motion.follow_window_deg", "<= 180"),
     ("stretch_margin = 1.0", "stretch_margin = 20.0", "motion.stretch_margin", "<= 13.8"),
     ("stretch_margin = 1.0", "", "motion.stretch_margin", "missing"),
+    ("accel_bias_bandwidth = 2.0", "accel_bias_bandwidth = -0.5", "estimator.accel_bias_bandwidth", "negative"),
+    ("accel_bias_bandwidth = 2.0", "accel_bias_bandwidth = 6.0", "estimator.accel_bias_bandwidth", "<= 5"),
+    ("accel_bias_max_g = 0.08", "accel_bias_max_g = 0.6", "estimator.accel_bias_max_g", "<= 0.5"),
+    ("accel_bias_max_g = 0.08", "accel_bias_max_g = 0.0", "estimator.accel_bias_max_g", "positive"),
     # keys the loader does not know
     ("L3 = 73.5", "L3 = 73.5\nL4 = 20.0", "geometry.L4", "unknown key"),
     ("[servo.theta3]", "[servo.theta4]\nid = 4\n[servo.theta3]", "servo.theta4.id", "unknown key"),
@@ -349,6 +353,8 @@ PARAMS_VARIANT = {
     "heartbeat_period = 0.5": "heartbeat_period = 0.2",
     "frame_gap = 0.05": "frame_gap = 0.02",
     "complementary_gyro_weight = 0.95": "complementary_gyro_weight = 0.98",
+    "velocity_bandwidth = 0.25": "velocity_bandwidth = 0.4",
+    "accel_bias_bandwidth = 2.0": "accel_bias_bandwidth = 0.7",
 }
 
 
@@ -405,6 +411,24 @@ def test_mpu_registers_follow_the_datasheet(params):
     assert _as_f32(d["MODEL_SAMPLE_PERIOD_S"]) == _as_f32(1 / imu["sample_rate"])
     assert d["MODEL_TICK_US"] == 1_000_000 / imu["sample_rate"]
     assert _as_f32(d["MODEL_COMPLEMENTARY_GYRO_WEIGHT"]) == _as_f32(raw["estimator"]["complementary_gyro_weight"])
+
+
+def test_velocity_gains_place_the_documented_poles(params):
+    """The velocity loop's gains put the small-angle error dynamics (model/velocity.py) at a
+    triple pole at -velocity_bandwidth, and the loop along up at a double pole at
+    -accel_bias_bandwidth: the eigenvalues of those linear systems (numpy), from the header."""
+    raw, d = params
+    est = raw["estimator"]
+    g = 9.80665
+    k_v, k_t, k_b = d["MODEL_VEL_K_V"], d["MODEL_VEL_K_T"], d["MODEL_VEL_K_B"]
+    # state (e_v, tilt error, gyro bias error): e_v' = g d - k_v e_v, d' = -k_t e_v - b, b' = k_b e_v
+    tilt_loop = np.array([[-k_v, g, 0.0], [-k_t, 0.0, -1.0], [k_b, 0.0, 0.0]])
+    assert np.allclose(np.linalg.eigvals(tilt_loop), -est["velocity_bandwidth"], atol=2e-2 * est["velocity_bandwidth"])
+    # state (e_u, bias error along up): e_u' = -g b_u - k_u e_u, b_u' = k_a e_u
+    along_up = np.array([[-d["MODEL_VEL_K_U"], -g], [d["MODEL_VEL_K_A"], 0.0]])
+    assert np.allclose(np.linalg.eigvals(along_up), -est["accel_bias_bandwidth"],
+                       atol=2e-2 * est["accel_bias_bandwidth"])
+    assert d["MODEL_ACCEL_BIAS_LEARNT"] == 1
 
 
 def test_leg_values_are_the_collision_tables(params):

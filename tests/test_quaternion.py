@@ -100,6 +100,36 @@ def test_quaternion_step_matches_the_sympy_model(fw):
     print(f"\nquaternion step vs SymPy (30 digits), 150 random states: max abs error {worst:.2e}")
 
 
+def test_gyro_only_step_matches_the_sympy_model_and_the_step_without_gains(fw):
+    """est_quat_propagate (the flight path while the drone's messages correct) against the
+    SymPy model (q normalised, rate) and against est_quat_step with k_p = k_i = 0."""
+    ffi, lib = fw
+    q_raw, rate = quaternion.propagate_unnormalised(MODEL)
+    n = sp.sqrt(sum(c * c for c in q_raw))
+    model = sympy_at_30_digits([c / n for c in q_raw] + rate + list(quaternion.up_of([c / n for c in q_raw])))
+    rng = np.random.default_rng(8)
+    e, e_step = ffi.new("est_quat_t *"), ffi.new("est_quat_t *")
+    gyro, up, up_step = ffi.new("float[3]"), ffi.new("float[3]"), ffi.new("float[3]")
+    acc = ffi.new("float[3]", [0.3, -0.2, 0.9])     # ignored without gains
+    for k in range(150):
+        q = Rotation.random(random_state=rng).as_quat()[[3, 0, 1, 2]].astype(np.float32)
+        b = rng.uniform(-0.3, 0.3, 3).astype(np.float32)
+        g = rng.uniform(-8.0, 8.0, 3).astype(np.float32)
+        dt = np.float32(rng.uniform(0.004, 0.03))
+        for st in (e, e_step):
+            st.q[0:4] = [float(v) for v in q]
+            st.bias[0:3] = [float(v) for v in b]
+        gyro[0:3] = [float(v) for v in g]
+        lib.est_quat_propagate(e, gyro, float(dt), up)
+        lib.est_quat_step(e_step, acc, gyro, 0.0, 0.0, 365.0, float(dt), up_step)
+        got = list(e.q) + list(e.rate) + list(up)
+        subs = dict(zip(quaternion.Q, q)) | dict(zip(quaternion.BIAS, b)) | dict(zip(attitude.GYRO, g)) | {attitude.DT: dt}
+        want = model({s: float(v) for s, v in subs.items()})
+        assert max(abs(x - y) for x, y in zip(got, want)) <= 40 * EPS32 * 8, (k, got, want)
+        assert list(e.bias) == [float(v) for v in b], "the bias is kept"
+        assert np.allclose(got, list(e_step.q) + list(e_step.rate) + list(up_step), atol=16 * EPS32 * 8, rtol=0)
+
+
 def _quat(rot):
     return [float(v) for v in rot.as_quat()[[3, 0, 1, 2]]]
 

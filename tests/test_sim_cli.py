@@ -54,6 +54,9 @@ def test_a_key_the_estimator_does_not_read_is_refused(capsys):
     assert cli.main(["sim", "bench", "--estimator", "link", "--set", "estimator.velocity_bandwidth=0.3",
                      "--plots", ""]) == 2
     assert "estimator.velocity_bandwidth: not used without the drone's velocity" in capsys.readouterr().err
+    assert cli.main(["sim", "bench", "--estimator", "quaternion", "--set", "estimator.accel_bias_bandwidth=1.0",
+                     "--plots", ""]) == 2
+    assert "estimator.accel_bias_bandwidth: not used without the drone's velocity" in capsys.readouterr().err
     assert cli.main(["sim", "bench", "--estimator", "imu-velocity", "--set", "estimator.fc_error_gain=0.3",
                      "--plots", ""]) == 2
     assert "estimator.fc_error_gain: used only with both" in capsys.readouterr().err

@@ -62,26 +62,30 @@ def test_generated_velocity_functions_match_the_sympy_model(fw):
     e_model, turn_model = velocity.innovation(MODEL)
     innovation = sympy_at_30_digits(e_model + turn_model)
     turned = sympy_at_30_digits(list(velocity.turned()))
+    along_up = sympy_at_30_digits(velocity.along_up())
+    accel_bias_update = sympy_at_30_digits(velocity.accel_bias_update(MODEL))
     corr, err = quaternion.link_error()
     link = sympy_at_30_digits(list(corr) + list(err))
     f = lambda n: ffi.new(f"float[{n}]")
-    v, acc, up, rate, e, turn, q, c, er, fc = f(3), f(3), f(3), f(3), f(3), f(3), f(4), f(4), f(3), f(3)
-    v_level, v_hist = f(3), f(3)
+    acc, up, rate, e, turn, q, c, er, fc = f(3), f(3), f(3), f(3), f(3), f(4), f(4), f(3), f(3)
+    v_level, v_hist, acc_bias, along, vel = f(3), f(3), f(3), f(3), ffi.new("est_vel_t *")
     worst = 0.0
     for k in range(200):
         qh = _unit_quat(rng)
         vals = {name: rng.uniform(-1, 1, 3).astype(np.float32) * s
                 for name, s in (("v", 20.0), ("acc", 2.0), ("rate", 8.0), ("v_level", 20.0), ("v_hist", 20.0),
-                                ("turn", 0.02), ("fc", 0.05))}
+                                ("turn", 0.02), ("fc", 0.05), ("acc_bias", 0.1), ("e", 2.0))}
         u = Rotation.from_quat(qh[[1, 2, 3, 0]]).inv().apply([0, 0, 1]).astype(np.float32)
         dt = np.float32(rng.uniform(0.004, 0.03))
-        v[0:3], acc[0:3], up[0:3], rate[0:3] = (vals["v"].tolist(), vals["acc"].tolist(), u.tolist(),
-                                                 vals["rate"].tolist())
-        lib.est_vel_predict(v, acc, up, rate, float(dt))
-        want = predict(dict(zip(velocity.VEL, vals["v"])) | dict(zip(attitude.ACC, vals["acc"]))
-                       | dict(zip(quaternion.UP, u)) | dict(zip(quaternion.RATE, vals["rate"])) | {attitude.DT: dt})
-        worst = max(worst, max(abs(a - b) for a, b in zip(list(v), want)))
-        assert max(abs(a - b) for a, b in zip(list(v), want)) <= 64 * EPS32 * 20, (k, list(v), want)
+        vel.v[0:3], vel.accel_bias[0:3] = vals["v"].tolist(), vals["acc_bias"].tolist()
+        acc[0:3], up[0:3], rate[0:3] = vals["acc"].tolist(), u.tolist(), vals["rate"].tolist()
+        lib.est_vel_predict(vel, acc, up, rate, float(dt))
+        want = predict(dict(zip(velocity.VEL, vals["v"])) | dict(zip(velocity.ACC_BIAS, vals["acc_bias"]))
+                       | dict(zip(attitude.ACC, vals["acc"])) | dict(zip(quaternion.UP, u))
+                       | dict(zip(quaternion.RATE, vals["rate"])) | {attitude.DT: dt})
+        worst = max(worst, max(abs(a - b) for a, b in zip(list(vel.v), want)))
+        assert max(abs(a - b) for a, b in zip(list(vel.v), want)) <= 64 * EPS32 * 20, (k, list(vel.v), want)
+        assert list(vel.accel_bias) == list(vals["acc_bias"]), "the prediction leaves the bias"
 
         q[0:4] = qh.tolist()
         v_level[0:3], v_hist[0:3] = vals["v_level"].tolist(), vals["v_hist"].tolist()
@@ -89,6 +93,17 @@ def test_generated_velocity_functions_match_the_sympy_model(fw):
         want = innovation(dict(zip(quaternion.QH, qh)) | dict(zip(velocity.V_LEVEL, vals["v_level"]))
                           | dict(zip(quaternion.RATE, vals["rate"])) | dict(zip(velocity.VEL_H, vals["v_hist"])))
         assert max(abs(a - b) for a, b in zip(list(e) + list(turn), want)) <= 64 * EPS32 * 40, (k, want)
+
+        e[0:3] = vals["e"].tolist()
+        lib.est_vel_along_up(q, e, along)
+        want = along_up(dict(zip(quaternion.QH, qh)) | dict(zip(velocity.INNOV, vals["e"])))
+        assert max(abs(a - b) for a, b in zip(list(along), want)) <= 16 * EPS32 * 2, (k, list(along), want)
+        k_a = np.float32(rng.uniform(0, 2))   # large enough that the clamp is reached too
+        acc_bias[0:3] = vals["acc_bias"].tolist()
+        lib.est_accel_bias_update(acc_bias, along, float(k_a))
+        want = accel_bias_update(dict(zip(velocity.ACC_BIAS, vals["acc_bias"])) | dict(zip(velocity.ALONG, list(along)))
+                                 | {velocity.K_A: k_a})
+        assert max(abs(a - b) for a, b in zip(list(acc_bias), want)) <= 8 * EPS32, (k, list(acc_bias), want)
 
         q0 = _unit_quat(rng)
         q[0:4] = q0.tolist()
@@ -125,6 +140,10 @@ def test_innovation_is_plain_geometry(fw):
         want = tilt.inv().apply(v_level) + np.cross(w, OFFSET_M) - v_hist
         assert np.allclose(list(e), want, atol=2e-5)
         assert np.allclose(list(turn), np.cross(q.inv().apply([0, 0, 1]), want), atol=2e-5)
+        along = ffi.new("float[3]")
+        lib.est_vel_along_up(f(q.as_quat()[[3, 0, 1, 2]]), e, along)
+        up = tilt.inv().apply([0, 0, 1])     # the level frame's up in base axes
+        assert np.allclose(list(along), np.dot(up, want) * up, atol=2e-5)
 
 
 def test_a_turn_is_a_body_axes_rotation(fw):
@@ -169,13 +188,14 @@ class Run:
     """stab_sample every tick on a Flight; the drone's attitude (with a scripted error) and
     velocity (with white noise) at 50 Hz, arriving `delay` s after measurement."""
 
-    def __init__(self, fw, flight, *, engaged=True, gyro_bias=(0.0, 0.0, 0.0), seed=0):
+    def __init__(self, fw, flight, *, engaged=True, gyro_bias=(0.0, 0.0, 0.0), accel_bias=(0.0, 0.0, 0.0), seed=0):
         self.ffi, self.lib = fw
         self.flight, self.engaged = flight, engaged
         self.s = self.ffi.new("stab_t *")
         self.lib.stab_reset(self.s)
         self.a, self.g, self.v = self.ffi.new("float[3]"), self.ffi.new("float[3]"), self.ffi.new("float[3]")
         self.bias = np.asarray(gyro_bias, float)
+        self.accel_bias = np.asarray(accel_bias, float)
         self.rng = np.random.default_rng(seed)
         self.t_us, self.seq = 2_000_000, 0
         self.errors, self.statuses = [], []
@@ -203,7 +223,7 @@ class Run:
                         if velocity_noise else self.flight.vel(t_m).tolist()
                     self.statuses.append(self.lib.stab_drone_velocity(self.s, self.seq, stamp, self.v, self.t_us))
                 self.seq = (self.seq + 1) & 0xFFFF
-            self.a[0:3] = self.flight.specific_force_g(t).tolist()
+            self.a[0:3] = (self.flight.specific_force_g(t) + self.accel_bias).tolist()
             # the rate over the sample period (its middle), as the gyro's low-pass averages it:
             # the estimator integrates each sample over the period before it
             self.g[0:3] = (self.flight.rate(t - 0.5 * TICK_US / 1e6) + self.bias).tolist()
@@ -307,12 +327,14 @@ def test_bad_velocity_messages_are_refused_counted_and_change_nothing(fw):
     last_seq, last_stamp, now = s.vel.seq, s.vel.stamp_us, run.t_us
 
     def status(seq, stamp, v, at=None):
-        before = (list(s.quat.q), list(s.quat.bias), list(s.velocity), s.vel.accepted, s.vel.refused)
+        before = (list(s.quat.q), list(s.quat.bias), list(s.velocity.v), list(s.velocity.accel_bias), s.vel.accepted,
+                  s.vel.refused)
         st = lib.stab_drone_velocity(s, seq & 0xFFFF, stamp & 0xFFFFFFFF, ffi.new("float[3]", v),
                                      now if at is None else at)
         if st != 0:
-            assert (list(s.quat.q), list(s.quat.bias), list(s.velocity), s.vel.accepted) == before[:4]
-            assert s.vel.refused == before[4] + 1, "refusals are counted"
+            assert (list(s.quat.q), list(s.quat.bias), list(s.velocity.v), list(s.velocity.accel_bias), s.vel.accepted) \
+                == before[:5]
+            assert s.vel.refused == before[5] + 1, "refusals are counted"
         return st
 
     nan, inf = float("nan"), float("inf")
@@ -360,7 +382,7 @@ def test_silence_a_restart_and_a_jump(imu_velocity):
     up = list(s.up)
     # the drone's computer restarted: seq and clock from 0, a velocity of 3 m/s: taken, restarts
     assert lib.stab_drone_velocity(s, 0, 5, ffi.new("float[3]", [3.0, 0.0, 0.0]), run.t_us) == 0
-    assert s.vel_restarts == 2 and list(s.up) == up and abs(s.velocity[0] - 3.0) < 0.01
+    assert s.vel_restarts == 2 and list(s.up) == up and abs(s.velocity.v[0] - 3.0) < 0.01
     # the next one agrees: the restart moved the history too, so nothing is left to correct
     assert lib.stab_drone_velocity(s, 1, 20_005, ffi.new("float[3]", [3.0, 0.0, 0.0]), run.t_us + 20_000) == 0
     assert s.vel_restarts == 2 and np.abs(np.array(list(s.up)) - up).max() < 1e-5
@@ -390,3 +412,59 @@ def test_velocity_holds_the_tilt_while_swaying(imu_velocity):
     run = Run(imu_velocity, swaying()).run(30.0, delay=MODEL.estimator.link_delay_min)
     print(f"\nswaying: tilt error RMS {run.rms(15.0):.4f} deg over the last 15 s")
     assert run.rms(15.0) < 0.02
+
+
+def tilting(max_deg=15.0):
+    """Tilted by hand about the centre of rotation, which stays still: roll and pitch sines of
+    max_deg at 0.23 and 0.17 Hz."""
+    w_r, w_p = 2 * math.pi * 0.23, 2 * math.pi * 0.17
+    a = math.radians(max_deg)
+    return Flight(lambda t: Rotation.from_euler("YX", [a * math.sin(w_p * t), a * math.sin(w_r * t + 1.0)]), at_rest)
+
+
+ACCEL_BIAS_G = np.array([0.005, -0.004, 0.008])   # what calibration leaves after 10 C of drift
+
+
+@pytest.fixture(scope="module")
+def imu_velocity_bias_not_learnt():
+    v = variants.build({"estimator.drone_attitude": False, "estimator.accel_bias_bandwidth": 0.0})
+    return v.ffi, v.lib
+
+
+def test_the_accelerometers_bias_is_learnt_while_tilting(imu_velocity, imu_velocity_bias_not_learnt):
+    """An accelerometer off by (5, -4, 8) mg, tilted +-15 deg about the still centre of rotation
+    for 90 s, the odometry's velocity with 0.05 m/s of white noise: the bias is learnt to within
+    2 mg per axis (the velocity's noise moves it by about 1 mg at the committed bandwidth), and
+    the tilt is right to within 0.1 deg RMS over the last 30 s. Not learnt, the horizontal bias
+    stands as a tilt error of atan(6.4 mg) = 0.37 deg."""
+    learnt = Run(imu_velocity, tilting(), accel_bias=ACCEL_BIAS_G).run(90.0, velocity_noise=0.05)
+    not_learnt = Run(imu_velocity_bias_not_learnt, tilting(), accel_bias=ACCEL_BIAS_G).run(90.0, velocity_noise=0.05)
+    got = np.array(list(learnt.s.velocity.accel_bias))
+    print(f"\naccelerometer bias learnt while tilting: {1000 * got} mg (true {1000 * ACCEL_BIAS_G}); tilt error RMS "
+          f"over the last 30 s {learnt.rms(30.0):.3f} deg, not learnt {not_learnt.rms(30.0):.3f} deg")
+    assert np.abs(got - ACCEL_BIAS_G).max() < 0.002
+    assert learnt.rms(30.0) < 0.1
+    assert abs(not_learnt.rms(30.0) - math.degrees(math.atan(np.hypot(*ACCEL_BIAS_G[:2])))) < 0.05
+    assert list(not_learnt.s.velocity.accel_bias) == [0.0, 0.0, 0.0]
+
+
+def test_a_still_board_learns_only_the_bias_along_up(imu_velocity):
+    """Level and still, only the bias along up shows (as a vertical drift): it is learnt, the
+    horizontal part is not (it is indistinguishable from a tilt there) and stays near 0."""
+    run = Run(imu_velocity, Flight(still, at_rest), accel_bias=ACCEL_BIAS_G).run(60.0, velocity_noise=0.05)
+    got = np.array(list(run.s.velocity.accel_bias))
+    print(f"\nstill and level: accelerometer bias learnt {1000 * got} mg (true {1000 * ACCEL_BIAS_G})")
+    assert abs(got[2] - ACCEL_BIAS_G[2]) < 0.002
+    assert np.abs(got[:2]).max() < 0.0005
+
+
+def test_the_learnt_accelerometer_bias_outlasts_a_silence(imu_velocity):
+    """The velocity stops: the bias learnt so far is kept (not reset, not moved) through the
+    silence and the restart on the next message, to be learnt on from there."""
+    run = Run(imu_velocity, Flight(still, at_rest), accel_bias=ACCEL_BIAS_G).run(20.0)
+    learnt = list(run.s.velocity.accel_bias)
+    assert abs(learnt[2] - ACCEL_BIAS_G[2]) < 0.002
+    run.run(3.0, send_velocity=False)
+    assert not run.lib.stab_velocity_fresh(run.s, run.t_us) and list(run.s.velocity.accel_bias) == learnt
+    run.run(0.1)
+    assert run.s.vel_restarts == 2 and np.abs(np.array(list(run.s.velocity.accel_bias)) - learnt).max() < 1e-4

@@ -68,7 +68,7 @@ typedef struct {
     uint8_t hist_len;
     stab_stream_t link;            /* the drone's attitude over the link */
     stab_stream_t vel;             /* the drone's velocity over the link */
-    float velocity[3];             /* the IMU's velocity estimate, base axes, m/s (drone_velocity) */
+    est_vel_t velocity;            /* the IMU's velocity and accelerometer bias estimates (drone_velocity) */
     float vel_last[3];             /* the last accepted drone_velocity (level frame, m/s) */
     float fc_error[3];             /* the flight controller's estimated tilt error, base axes, rad */
     uint32_t vel_restarts;         /* velocity estimates restarted (first message, or a jump) */

@@ -32,7 +32,7 @@ void stab_reset(stab_t *s)
 static void remember(stab_t *s, uint32_t now_us)
 {
     memcpy(s->hist_q[s->hist_next], s->quat.q, sizeof s->quat.q);
-    if (MODEL_DRONE_VELOCITY) memcpy(s->hist_v[s->hist_next], s->velocity, sizeof s->velocity);
+    if (MODEL_DRONE_VELOCITY) memcpy(s->hist_v[s->hist_next], s->velocity.v, sizeof s->velocity.v);
     s->hist_us[s->hist_next] = now_us;
     s->hist_next = (uint8_t)(s->hist_next + 1u < MODEL_LINK_HISTORY ? s->hist_next + 1u : 0u);   /* (no division) */
     if (s->hist_len < MODEL_LINK_HISTORY) s->hist_len++;
@@ -139,7 +139,7 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
     const bool aided = stab_velocity_fresh(s, now_us);
     if (stab_link_fresh(s, now_us) || aided) {
-        est_quat_step(&s->quat, acc, gyro_rad_s, 0.0f, 0.0f, 0.0f, dt, s->up);   /* the drone's messages correct */
+        est_quat_propagate(&s->quat, gyro_rad_s, dt, s->up);   /* the drone's messages correct */
     } else if (engaged) {
         est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
                       dt, s->up);
@@ -148,7 +148,7 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     }
     memcpy(s->rate, s->quat.rate, sizeof s->rate);
     /* the raw specific force: the chip's DLPF is filter enough for an integral */
-    if (aided) est_vel_predict(s->velocity, accel_g, s->up, s->rate, dt);
+    if (aided) est_vel_predict(&s->velocity, accel_g, s->up, s->rate, dt);
     if (MODEL_DRONE_ATTITUDE || MODEL_DRONE_VELOCITY) remember(s, now_us);
 #else
     static const float no_bias[3] = { 0.0f, 0.0f, 0.0f };
@@ -284,7 +284,7 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
 /* The velocity estimate (and its history) moved by k e. */
 static void shift_velocity(stab_t *s, const float e[3], float k)
 {
-    for (int i = 0; i < 3; ++i) s->velocity[i] += k * e[i];
+    for (int i = 0; i < 3; ++i) s->velocity.v[i] += k * e[i];
     for (unsigned n = 0; n < s->hist_len; ++n) {
         for (int i = 0; i < 3; ++i) s->hist_v[n][i] += k * e[i];
     }
@@ -321,6 +321,13 @@ stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_u
         est_quat_turn(s->quat.q, d);
         for (unsigned n = 0; n < s->hist_len; ++n) est_quat_turn(s->hist_q[n], d);
         est_bias_update(s->quat.bias, turn, h * MODEL_VEL_K_B);
+        if (MODEL_ACCEL_BIAS_LEARNT) {
+            /* along up, where a tilt error does not show, the drift is the accelerometer's bias */
+            float along[3];
+            est_vel_along_up(q_then, e, along);
+            shift_velocity(s, along, h * (MODEL_VEL_K_U - MODEL_VEL_K_V));
+            est_accel_bias_update(s->velocity.accel_bias, along, h * MODEL_VEL_K_A);
+        }
         if (stab_link_fresh(s, now_us)) {
             /* the flight controller's error takes the turn too: its next message keeps it */
             for (int i = 0; i < 3; ++i) d[i] = -d[i];
