@@ -52,7 +52,7 @@ import sympy as sp
 
 from .attitude import ACC, DT, mounting
 from .config import Model
-from .quaternion import FC_ERROR, Q, QH, RATE, UP, _normalised, qmul, tilt_transpose, up_of
+from .quaternion import FC_ERROR, Q, QH, RATE, UP, _clamp, _normalised, qmul, tilt_transpose, up_of
 
 G = sp.Float("9.80665", 40)                         # standard gravity, m/s^2 (the accelerometer's g)
 VEL = sp.symbols("vx vy vz", real=True)             # the estimate, base axes, m/s
@@ -92,7 +92,7 @@ def along_up():
 def accel_bias_update(m: Model):
     """ACC_BIAS moved by -K_A * ALONG, clamped to the model's accel_bias_max_g."""
     lim = sp.nsimplify(m.estimator.accel_bias_max_g, rational=True)
-    return [sp.Max(-lim, sp.Min(lim, ACC_BIAS[i] - K_A * ALONG[i])) for i in range(3)]
+    return [_clamp(ACC_BIAS[i] - K_A * ALONG[i], lim) for i in range(3)]
 
 
 def turned():
