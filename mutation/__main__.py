@@ -1,6 +1,7 @@
 """`python -m mutation [--jobs N] [--target TEXT] [--every K] [--list]`: run the mutants of
 the chosen targets (mutation/targets.py) against their tests, resuming from the results
-file, and print the score table."""
+file, and print the score table. `--remap` moves the judged mutants of equivalent.toml to
+where an edit moved their lines."""
 from __future__ import annotations
 
 import argparse
@@ -10,6 +11,7 @@ import time
 from pathlib import Path
 
 from .catalogue import ROOT, file_digest, target_mutants
+from .remap import remap
 from .results import Results, equivalents
 from .targets import TARGETS
 from .worker import Worker
@@ -103,7 +105,18 @@ def main(argv=None) -> int:
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")
     ap.add_argument("--table", action="store_true",
                     help="print the table of every mutant with a result in the results file, run nothing")
+    ap.add_argument("--remap", metavar="REV", nargs="?", const="HEAD",
+                    help="move equivalent.toml's ids to the lines they named at git revision REV (HEAD) and stop")
     args = ap.parse_args(argv)
+    if args.remap:
+        moved, left = remap(args.remap)
+        for old, new in moved:
+            print(f"moved  {old}\n    -> {new}")
+        for old in left:
+            print(f"judge again (its line is gone or not unique): {old}")
+        if not moved and not left:
+            print("every judged mutant names the code as it is")
+        return 1 if left else 0
     if args.table:
         args.every = 1
     targets, work = chosen(args)

@@ -310,6 +310,86 @@ def test_the_velocitys_turns_carry_the_flight_controllers_error_along():
     assert np.allclose(np.degrees(list(run.s.fc_error)), [0.8, -0.5, 0.0], atol=0.05)
 
 
+def qmul(a, b):
+    """Hamilton product of (w, x, y, z) quaternions."""
+    (w1, x1, y1, z1), (w2, x2, y2, z2) = a, b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def est_up(q):
+    """The estimate's up direction in base axes: the level frame's z seen from the body."""
+    w, x, y, z = q
+    return Rotation.from_quat([x, y, z, w]).inv().apply([0.0, 0.0, 1.0])
+
+
+def off_message(run, offset=(0.3, -0.2, 0.0)):
+    """Sends the next drone_velocity, measured 10 ms after the last one, `offset` m/s off the
+    truth; returns (status, d): d the body-axes turn (rad) it gave the estimate."""
+    s, lib, ffi = run.s, run.lib, run.ffi
+    q_before = np.array(list(s.quat.q), float)
+    t_m = run.t_us / 1e6 - 0.01
+    v = run.flight.vel(t_m) + offset
+    stamp = (round(t_m * 1e6) + 987_654_321) & 0xFFFFFFFF
+    status = lib.stab_drone_velocity(s, run.seq, stamp, ffi.new("float[3]", v.tolist()), run.t_us)
+    run.seq += 1
+    dq = qmul(q_before * [1, -1, -1, -1], np.array(list(s.quat.q), float))
+    return status, 2 * dq[1:] / dq[0]
+
+
+def test_a_velocity_turn_moves_the_history_the_up_direction_and_the_flight_controllers_error(fw):
+    """Swaying with both streams fresh, at the sway's largest tilt (17 deg), a message 0.3 m/s
+    off the truth turns the estimate by a small body-axes rotation d. Every filled slot of the
+    history turns by the same d (the next message is compared with an estimate that has taken
+    this one's correction): each slot is its previous self times (1, d/2), normalised; the
+    up direction is the turned estimate's; the flight controller's learnt error moves by -d
+    on every axis (its next message agrees). To float32 precision."""
+    run = Run(fw, swaying()).run(3.5, attitude_error=(0.0, 0.0))
+    s = run.s
+    assert np.abs(np.array(list(s.up)) - est_up(list(s.quat.q))).max() < 1e-6
+    slots = [np.array(list(s.hist_q[n]), float) for n in range(s.hist_len)]
+    fc_error = np.array(list(s.fc_error))
+    status, d = off_message(run)
+    assert status == 0 and len(slots) >= 4 and abs(d[2]) > 5e-6 and np.linalg.norm(d) > 5e-5, (len(slots), d)
+    for n, q in enumerate(slots):
+        turned = qmul(q, [1.0, *(d / 2)])
+        turned /= np.linalg.norm(turned)
+        assert np.abs(np.array(list(s.hist_q[n])) - turned).max() < 2e-6, n
+    assert np.abs(np.array(list(s.up)) - est_up(list(s.quat.q))).max() < 1e-6
+    assert np.abs(np.array(list(s.fc_error)) - (fc_error - d)).max() < 1e-7
+
+
+def test_one_message_moves_the_velocity_and_the_bias_by_the_documented_gains(imu_velocity):
+    """Still and level, one message h after the previous one, 0.1 m/s off on x and on z (up):
+    across up the velocity moves by h k_v e, along up by h k_u e and the bias estimate by
+    -h k_a e, with k_v = 3 velocity_bandwidth, k_u = 2 accel_bias_bandwidth and
+    k_a = accel_bias_bandwidth^2 / g (the model file's bandwidths, docs/firmware.md)."""
+    est = MODEL.estimator
+    k_v, k_u, k_a = 3 * est.velocity_bandwidth, 2 * est.accel_bias_bandwidth, est.accel_bias_bandwidth ** 2 / G
+    run = Run(imu_velocity, Flight(still, at_rest)).run(10.0)
+    s = run.s
+    v0, b0, stamp0 = np.array(list(s.velocity.v)), np.array(list(s.velocity.accel_bias)), s.vel.stamp_us
+    status, _ = off_message(run, offset=(0.1, 0.0, 0.1))
+    h = ((s.vel.stamp_us - stamp0) & 0xFFFFFFFF) * 1e-6
+    e = np.array([0.1, 0.0, 0.1]) - v0
+    dv, db = np.array(list(s.velocity.v)) - v0, np.array(list(s.velocity.accel_bias)) - b0
+    assert status == 0 and h == pytest.approx(0.01)
+    assert dv[0] == pytest.approx(h * k_v * e[0], rel=0.01)
+    assert dv[2] == pytest.approx(h * k_u * e[2], rel=0.01)
+    assert db[2] == pytest.approx(-h * k_a * e[2], rel=0.01)
+
+
+def test_without_the_drones_attitude_its_learnt_error_is_kept(fw):
+    """The drone's attitude stops, its velocity goes on: the velocity's turns no longer move
+    the flight controller's learnt error (kept for when the attitude returns)."""
+    run = Run(fw, swaying()).run(10.0, attitude_error=np.radians([0.8, -0.5]))
+    run.run(MODEL.estimator.link_timeout + 0.5)
+    assert not run.lib.stab_link_fresh(run.s, run.t_us) and run.lib.stab_velocity_fresh(run.s, run.t_us)
+    kept = list(run.s.fc_error)
+    status, d = off_message(run)
+    assert status == 0 and np.linalg.norm(d) > 5e-5 and list(run.s.fc_error) == kept
+
+
 def test_when_the_velocity_stops_the_learnt_error_keeps_the_estimate(fw):
     """After 60 s of both streams with the flight controller off by (+0.8, -0.5) deg, the
     velocity stops: its attitude corrects at the full link_gain again, less fc_error, so the
@@ -349,6 +429,10 @@ def test_bad_velocity_messages_are_refused_counted_and_change_nothing(fw):
     lib.stab_reset(fresh)
     assert lib.stab_drone_velocity(fresh, 1, 1000, ffi.new("float[3]"), now) == lib.STAB_LINK_STALE   # no history
     assert status(last_seq + 1, last_stamp + 1, [0.01, 0.0, 0.0]) == lib.STAB_LINK_ACCEPTED   # 1 us newer
+    # the documented limit: 50 m/s is taken, the next float32 above it refused
+    assert status(last_seq + 2, last_stamp + 2, [0.0, -50.0, 0.0]) == lib.STAB_LINK_ACCEPTED
+    over = float(np.nextafter(np.float32(50.0), np.float32(51.0)))
+    assert status(last_seq + 3, last_stamp + 3, [0.0, 0.0, over]) == lib.STAB_LINK_NOT_FINITE
     off = variants.build({"estimator.drone_velocity": False})
     s_off = off.ffi.new("stab_t *")
     off.lib.stab_reset(s_off)
@@ -380,12 +464,16 @@ def test_silence_a_restart_and_a_jump(imu_velocity):
     run.run(3.0, send_velocity=False)
     assert not lib.stab_velocity_fresh(s, run.t_us)
     up = list(s.up)
-    # the drone's computer restarted: seq and clock from 0, a velocity of 3 m/s: taken, restarts
-    assert lib.stab_drone_velocity(s, 0, 5, ffi.new("float[3]", [3.0, 0.0, 0.0]), run.t_us) == 0
-    assert s.vel_restarts == 2 and list(s.up) == up and abs(s.velocity.v[0] - 3.0) < 0.01
-    # the next one agrees: the restart moved the history too, so nothing is left to correct
-    assert lib.stab_drone_velocity(s, 1, 20_005, ffi.new("float[3]", [3.0, 0.0, 0.0]), run.t_us + 20_000) == 0
+    # the drone's computer restarted: seq and clock from 0, moving at (3, -1, 0.5) m/s: taken, restarts
+    moving = [3.0, -1.0, 0.5]
+    assert lib.stab_drone_velocity(s, 0, 5, ffi.new("float[3]", moving), run.t_us) == 0
+    assert s.vel_restarts == 2 and list(s.up) == up and np.abs(np.array(list(s.velocity.v)) - moving).max() < 0.01
+    # the next one agrees: the restart moved the history too (every axis), so nothing is left
+    # to correct: neither the tilt nor the accelerometer's bias (the vertical) moves
+    bias = np.array(list(s.velocity.accel_bias))
+    assert lib.stab_drone_velocity(s, 1, 20_005, ffi.new("float[3]", moving), run.t_us + 20_000) == 0
     assert s.vel_restarts == 2 and np.abs(np.array(list(s.up)) - up).max() < 1e-5
+    assert np.abs(np.array(list(s.velocity.accel_bias)) - bias).max() < 1e-6
     up = list(s.up)
     assert lib.stab_drone_velocity(s, 2, 40_005, ffi.new("float[3]", [0.0, 0.0, 0.0]), run.t_us + 40_000) == 0
     assert s.vel_restarts == 3 and list(s.up) == up, "a 3 m/s jump restarts, turns nothing"
@@ -393,6 +481,9 @@ def test_silence_a_restart_and_a_jump(imu_velocity):
         assert lib.stab_drone_velocity(s, 3 + k, 60_005 + 20_000 * k, ffi.new("float[3]", v),
                                        run.t_us + 60_000 + 20_000 * k) == 0
         assert s.vel_restarts == 4 + k and list(s.up) == up
+    # a step of exactly 2 m/s is not a jump (the documented "more than 2 m/s")
+    assert lib.stab_drone_velocity(s, 5, 100_005, ffi.new("float[3]", [0.0, -2.5, 0.5]), run.t_us + 100_000) == 0
+    assert s.vel_restarts == 5
 
 
 def swaying(amplitude=0.3, hz=0.5, seconds=40.0):
@@ -458,13 +549,27 @@ def test_a_still_board_learns_only_the_bias_along_up(imu_velocity):
     assert np.abs(got[:2]).max() < 0.0005
 
 
+def test_not_learnt_the_vertical_velocity_settles_at_the_bias_over_its_gain(imu_velocity_bias_not_learnt):
+    """accel_bias_bandwidth 0: along up the velocity is corrected at k_v = 3 x velocity_bandwidth
+    like every other axis, so a still, level board with a bias b along up settles at the
+    first-order loop's v = b g / k_v (0.105 m/s for 8 mg) instead of drifting on."""
+    run = Run(imu_velocity_bias_not_learnt, Flight(still, at_rest), accel_bias=ACCEL_BIAS_G).run(30.0)
+    k_v = 3 * MODEL.estimator.velocity_bandwidth
+    assert list(run.s.velocity.accel_bias) == [0.0, 0.0, 0.0]
+    assert run.s.velocity.v[2] == pytest.approx(ACCEL_BIAS_G[2] * G / k_v, rel=0.1)
+
+
 def test_the_learnt_accelerometer_bias_outlasts_a_silence(imu_velocity):
     """The velocity stops: the bias learnt so far is kept (not reset, not moved) through the
-    silence and the restart on the next message, to be learnt on from there."""
+    silence and the restart on the next message, to be learnt on from there. Stale, the
+    velocity is no longer integrated (the accelerometer's residual would move it)."""
     run = Run(imu_velocity, Flight(still, at_rest), accel_bias=ACCEL_BIAS_G).run(20.0)
     learnt = list(run.s.velocity.accel_bias)
     assert abs(learnt[2] - ACCEL_BIAS_G[2]) < 0.002
     run.run(3.0, send_velocity=False)
     assert not run.lib.stab_velocity_fresh(run.s, run.t_us) and list(run.s.velocity.accel_bias) == learnt
+    stale = list(run.s.velocity.v)
+    run.run(1.0, send_velocity=False)
+    assert list(run.s.velocity.v) == stale and list(run.s.velocity.accel_bias) == learnt
     run.run(0.1)
     assert run.s.vel_restarts == 2 and np.abs(np.array(list(run.s.velocity.accel_bias)) - learnt).max() < 1e-4
