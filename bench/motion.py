@@ -123,7 +123,7 @@ def axis_pass(m, miss, speed=PASS_SPEED, side=PASS_SIDE, depth=PASS_DEPTH, facin
     goals = []
     for target in path:
         sent = list(q)
-        lib.app_next_goal(mo, list(map(float, target)), False, sent, q)
+        lib.app_next_goal(mo, list(map(float, target)), False, [sent, sent], q)   # (the shafts at their goals)
         goals.append(list(q))
     goals = np.array(goals)
     err = np.linalg.norm(arm_points(m, goals)[1] - np.array(path), axis=1)

@@ -33,6 +33,10 @@ def gyro_dps_per_lsb(range_dps: int) -> float:
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
 RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX-12A e-manual)
 SPEED_RPM_MAX = 1023 * RPM_PER_SPEED_UNIT        # AX-12A Moving Speed register limit
+# The AX-12A's no-load speed, 59 rpm at 12 V (e-manual), falls in proportion to its supply
+# (the legacy AX-12's 0.196 s/60 deg at 10 V, 51 rpm, lies just above that line).
+NO_LOAD_RPM = 59.0
+NO_LOAD_VOLTS = 12.0
 # Every length of the model (mm) is at most 10 m: the generated code is float32, and the
 # code generator's exact SymPy checks take minutes on lengths like 1e300. A link is 0 or at
 # least 1 um long, for the same reason at the other end (1e-300).
@@ -54,7 +58,7 @@ _KEYS_BY_TABLE = {
     "joints.theta1": "min max", "joints.theta2": "min max", "joints.theta3": "min max",
     "collision": "body_z leg_angles leg_half_width leg_distance",
     "servo": "baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
-             "working_speed_rpm boot_time response_lag",
+             "working_speed_rpm speed_margin boot_time response_lag",
     "servo.theta1": "id zero direction", "servo.theta2": "id zero direction",
     "servo.theta3": "id zero direction",
     "park": "q",
@@ -125,6 +129,7 @@ class Model:
     park_speed_rpm: float
     transit_speed_rpm: float
     working_speed_rpm: float
+    servo_speed_margin: float      # the share of the no-load speed at the reported supply goals may take
     servo_boot_time: float
     servo_response_lag: float      # s: how far the shaft lags its goal (the lead time covers it)
     park_deg: tuple[float, float, float]
@@ -377,6 +382,7 @@ def parse(raw: bytes, path: Path) -> Model:
         park_speed_rpm=r.number("servo.park_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         transit_speed_rpm=r.number("servo.transit_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
         working_speed_rpm=r.number("servo.working_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
+        servo_speed_margin=r.number("servo.speed_margin", positive=True, hi=1.0),
         servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
         servo_response_lag=(r.number("servo.response_lag", nonnegative=True, hi=SERVO_LAG_MAX_S)
                             if r.has("servo.response_lag") else SERVO_LAG_ASSUMED_S),

@@ -85,9 +85,11 @@ MESSAGES = (
         ("servo1_voltage", "u8"), ("servo1_temperature", "u8"), ("servo1_load", "u16"),
         ("servo2_voltage", "u8"), ("servo2_temperature", "u8"), ("servo2_load", "u16"),
         ("servo3_voltage", "u8"), ("servo3_temperature", "u8"), ("servo3_load", "u16"),
+        ("lagging_joints", "u8"),
     ), "every 500 ms: sequence number and uptime, state, set position, joint angles (rad), fault flags, "
        "counters, the bus and reset state (with the exception that halted the firmware before it), firmware and model identity, each servo's supply (0.1 V), "
-       "temperature (deg C) and load (AX-12A units, bit 10 = direction)"),
+       "temperature (deg C) and load (AX-12A units, bit 10 = direction), and the joints whose shaft fell "
+       "behind its goal since the last heartbeat (bit 0 = joint 1; faults.servo_lagging)"),
     Message("imu_raw", 0x21, "to_drone", (
         ("seq", "u16"), ("stamp_us", "u32"),
         ("ax", "i16"), ("ay", "i16"), ("az", "i16"), ("temperature", "i16"),
@@ -166,6 +168,9 @@ FAULTS = (
                     "an engaged arm parks (latched until engage)"),
     ("timing", "the tick interrupt stopped (ticks are run from the microsecond clock) or the clock "
                "stopped (servo power cut)"),
+    ("servo_lagging", "a servo's shaft fell further behind its goal than the motion allows for (slowed by "
+                      "its supply or load, or blocked): the goals wait for it; if it does not catch up, "
+                      "servo_tracking follows and the arm parks. heartbeat.lagging_joints says which"),
 )
 
 

@@ -5,7 +5,7 @@ import math
 
 import sympy as sp
 
-from .config import RPM_PER_SPEED_UNIT, Model
+from .config import NO_LOAD_RPM, NO_LOAD_VOLTS, RPM_PER_SPEED_UNIT, Model
 
 
 def units_per_rad(m: Model) -> sp.Expr:
@@ -46,3 +46,20 @@ def unit_range(m: Model, joint: int) -> tuple[int, int]:
     ends = sorted(float(joint_to_units(m, joint, sp.rad(sp.nsimplify(d, rational=True))))
                   for d in (lim.min_deg, lim.max_deg))
     return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)
+
+
+def supply_step_per_decivolt(m: Model) -> sp.Expr:
+    """The most a goal may move per tick (rad) per 0.1 V the servos report: the share
+    servo.speed_margin of the no-load speed, which falls in proportion to the supply."""
+    rpm_per_decivolt = sp.nsimplify(NO_LOAD_RPM, rational=True) / sp.nsimplify(NO_LOAD_VOLTS, rational=True) / 10
+    margin = sp.nsimplify(m.servo_speed_margin, rational=True)
+    return margin * rpm_per_decivolt * 2 * sp.pi / 60 / sp.nsimplify(m.sample_rate, rational=True)
+
+
+def gap_max_units(m: Model) -> int:
+    """How far (units) a shaft may trail its goal before the goals wait for it: twice its
+    response lag at the working speed and one working step. Further
+    behind, the servo is slower than the motion allows for (blocked, or a supply below what
+    it reports)."""
+    rate = float(rad_per_s(speed_units(m.working_speed_rpm)) * units_per_rad(m))      # units/s
+    return math.ceil(rate * (2 * m.servo_response_lag + 1 / m.sample_rate))

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from simboard_tools import FAULT, IDS, MODEL, PARK_SPEED, TICK, TRANSIT_SPEED, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
+from simboard_tools import FAULT, IDS, MODEL, PARK_SPEED, TICK, TRANSIT_SPEED, US, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
 from simboard_tools import pose_ok, poses_ok, shaft_units, speed_units_per_s
 import oracles
 from uavarm.link import messages
@@ -30,8 +30,12 @@ class Invariants:
       the legs (plain geometry), at the park, transit or working speed;
     - motion: every goal is at most what its speed moves in the time since the previous
       one (plus a unit of rounding) from it, and the path the servos take between the two
-      (each joint at that speed, arriving at its own time) is clear, sampled; the shafts
-      themselves stand in a safe pose whenever the firmware has commanded them;
+      (each joint at that speed, arriving at its own time) is clear, sampled;
+    - the shafts themselves (the simulated servos' positions, lagging and slowed by their
+      supply as they are) stand in a safe pose at every physics step (the board's main-loop
+      step) from the firmware's first command after power-on or torque-on until the torque
+      or the supply goes off; `shaft_steps` counts the steps judged and `clearance` keeps the
+      least distance (mm) from the body plane and the legs' zones;
     - every heartbeat has finite set position and joints (no NaN reaches the drone or a
       servo), engaged only while enabled, enabled exactly while the supply is on, and
       only known fault bits;
@@ -52,6 +56,10 @@ class Invariants:
         self._last_goal: tuple[float, list[int]] | None = None    # (time, units) while powered
         self.limp = False                 # torque off on purpose: no SYNC_WRITE is due
         self.segments = 0
+        board.shaft_trace = []
+        self._judged_from: float | None = None   # shafts judged from this time (commanded) on
+        self.shaft_steps = 0
+        self.clearance = math.inf
 
     def power_at(self, t: float) -> tuple[bool, float]:
         """(on, since when) of the servo supply at time t."""
@@ -69,16 +77,19 @@ class Invariants:
             assert p.start - self.power_at(p.start)[1] >= MODEL.servo_boot_time - 1e-9, "sent during boot"
             if p.inst == 0x83:
                 self.limp = False
+                if self._judged_from is None or self._judged_from < self.power_at(p.start)[1]:
+                    self._check_shafts(p.start)
+                    self._judged_from = p.start
                 goal, speed = sync_goal_speed(p.raw)
                 assert pose_ok(goal), ("unsafe command", goal, units_to_joints(goal))
                 assert speed in ([PARK_SPEED] * 3, [TRANSIT_SPEED] * 3, [WORKING_SPEED] * 3), speed
                 self._check_move(p.start, goal, speed[0])
             elif p.inst == 0x03 and p.id == 0xFE and p.params[:2] == bytes([TORQUE_ENABLE, 0]):
                 self.limp = True          # torque off on purpose, until the next SYNC_WRITE
+                self._check_shafts(p.start)
+                self._judged_from = None
         self.n_tx = len(log.tx)
-        on_bus = {s.id for s in board.bus.servos}
-        if board.servo_power and self._last_goal is not None and on_bus.issuperset(IDS):
-            assert pose_ok(shaft_units(board)), ("shafts in an unsafe pose", shaft_units(board))
+        self._check_shafts(board.time)
         for k in range(self.n_hb, len(board.heartbeats)):
             hb, t = board.heartbeats[k], board.heartbeat_times[k]
             assert not hb["engaged"] or hb["enabled"], hb
@@ -111,6 +122,31 @@ class Invariants:
             assert poses_ok(path).all(), ("unsafe on the way", before, goal)
             self.segments += 1
         self._last_goal = (t, list(goal))
+
+    def _check_shafts(self, until: float) -> None:
+        """The shafts at every recorded step up to `until` (s): safe by plain geometry while
+        judged (the supply on, since the first command after power-on or torque-on)."""
+        board = self.board
+        trace = board.shaft_trace
+        n = next((k for k, row in enumerate(trace) if row[0] > until * US + 1e-6), len(trace))
+        rows, board.shaft_trace = trace[:n], trace[n:]
+        ids = [s.id for s in board.bus.servos]
+        if not rows or self._judged_from is None or sorted(ids) != sorted(IDS):
+            return
+        a = np.array(rows, dtype=float)
+        t = a[:, 0] / US
+        power_on = max((when for when, on in board.power_log if on and when <= self._judged_from), default=math.inf)
+        power_off = min((when for when, on in board.power_log if not on and when > power_on), default=math.inf)
+        judged = (a[:, 1] > 0) & (t >= self._judged_from) & (t < power_off)
+        units = a[judged][:, 2:][:, [ids.index(i) for i in IDS]]
+        if not len(units):
+            return
+        ok = poses_ok(units)
+        bad = np.flatnonzero(~ok)
+        assert not len(bad), (f"shafts in an unsafe pose at {t[judged][bad[0]]:.4f} s", units[bad[0]],
+                               np.degrees(units_to_joints(units[bad[0]])))
+        self.shaft_steps += len(units)
+        self.clearance = min(self.clearance, float(oracles.clearance_mm(MODEL, units_to_joints(units)).min()))
 
     def goals(self, since: float = -1.0) -> np.ndarray:
         """The SYNC_WRITE goals (units, one row per tick) sent after `since`."""

@@ -166,3 +166,18 @@ def clear_by(m, q, mm, rad):
         near |= np.minimum(d, math.pi - d) <= math.radians(m.leg_half_width) + rad
     reach = np.maximum(np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1]))
     return ok & (~near | (reach < m.leg_distance - mm))
+
+
+def clearance_mm(m, q):
+    """How far (mm) poses q (N, 3) stand clear of the body plane and, where joint 1 is within a
+    leg's half width, of the leg distance: the least of the elbow's and the end effector's
+    distances to those boundaries (negative: inside)."""
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    _, elbow, ee = arm_points(m, q)
+    clear = np.minimum(m.body_z - elbow[:, 2], m.body_z - ee[:, 2])
+    near = np.zeros(len(q), dtype=bool)
+    for a in np.radians(m.leg_angles):
+        d = np.mod(q[:, 0] - a, math.pi)
+        near |= np.minimum(d, math.pi - d) <= math.radians(m.leg_half_width)
+    reach = np.maximum(np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1]))
+    return np.where(near, np.minimum(clear, m.leg_distance - reach), clear)

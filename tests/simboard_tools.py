@@ -280,11 +280,16 @@ def level_ik_clear(p, mm: float = 0.5, deg: float = 0.5) -> bool:
 
 # ---------------------------------------------------------------- boards
 
-def make_board(at=None, **kw) -> SimBoard:
+def make_board(at=None, lag: float | None = None, **kw) -> SimBoard:
     """A SimBoard whose servos (one per joint, at the bus's baud) rest at `at` (units per
-    joint; default the park pose, so tests not about parking need not wait for it)."""
+    joint; default the park pose, so tests not about parking need not wait for it), their
+    shafts lagging `lag` s (default the model file's servo.response_lag) behind their
+    speed-limited profile; the supply is SimBoard's (kw `supply`: default a 3S battery at
+    11.1 V, sagging as they move)."""
     at = PARK_UNITS if at is None else at
-    servos = [ax12_sim.AX12(s.id, position=float(round(u)), table={"baud_rate": baud_register(MODEL.servo_baud)})
+    lag = MODEL.servo_response_lag if lag is None else lag
+    servos = [ax12_sim.AX12(s.id, position=float(round(u)), time_constant=lag, deadband=lag > 0,
+                            table={"baud_rate": baud_register(MODEL.servo_baud)})
               for s, u in zip(MODEL.servos, at)]
     return SimBoard(MODEL, servos=servos, **kw)
 

@@ -418,7 +418,7 @@ def follow_for(q, target, ticks):
     sent, q_next = FFI.new("float[3]", list(map(float, q))), FFI.new("float[3]")
     goals = []
     for _ in range(ticks):
-        LIB.app_next_goal(m, list(map(float, target)), False, sent, q_next)
+        LIB.app_next_goal(m, list(map(float, target)), False, [list(sent)] * 2, q_next)   # shafts at their goals
         sent[0:3] = list(q_next)
         goals.append(np.array(list(q_next)))
     return m, np.array(goals)

@@ -144,6 +144,7 @@ def _integer(lo: int):
 FINITE = _number(lambda v: True, "must be a finite number")
 POSITIVE = _number(lambda v: v > 0, "must be a positive number")
 NOT_NEGATIVE = _number(lambda v: v >= 0, "must be a number >= 0")
+SUPPLY_VOLTS = _number(lambda v: 6 <= v <= 14, "must be a voltage from 6 to 14 (the servos' supply limits)")
 
 
 def version() -> str:
@@ -223,9 +224,12 @@ def parser() -> argparse.ArgumentParser:
     st.add_argument("--imu-mounting", default=None, metavar="ROLL,PITCH,YAW",
                     help="how the simulated IMU really sits on the base (deg), whatever the model file says "
                          "(default: as the model file says)")
-    st.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=0.0, metavar="MS",
+    st.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=None, metavar="MS",
                     help="how far the simulated servos' shafts lag their speed-limited motion (first order; "
-                         "default: %(default)s)")
+                         "default: as the model file's servo.response_lag says)")
+    st.add_argument("--supply", type=SUPPLY_VOLTS, default=None, metavar="VOLTS",
+                    help="the simulated servos' battery, open circuit (it sags as they move, and their speed "
+                         "with it; default: a 3S lithium battery at its nominal 11.1 V)")
     st.add_argument("--link-delay-ms", default="0", metavar="UP[,DOWN]",
                     help="the link's delay to the board and back from it (ms; DOWN as UP if left out; "
                          "default: %(default)s)")
@@ -248,6 +252,9 @@ def parser() -> argparse.ArgumentParser:
     sm.add_argument("--servo-lag-ms", type=NOT_NEGATIVE, default=None, metavar="MS",
                     help="how far the simulated servos' shafts lag their speed-limited motion, whatever the model "
                          "file says (first order; default: as the model file's servo.response_lag says)")
+    sm.add_argument("--supply", type=SUPPLY_VOLTS, default=None, metavar="VOLTS",
+                    help="the simulated servos' battery, open circuit (it sags as they move, and their speed "
+                         "with it; default: a 3S lithium battery at its nominal 11.1 V)")
     sm.add_argument("--seeds", type=_integer(1), default=1, help="seeds to run (default: %(default)s)")
     sm.add_argument("--seed", type=_integer(0), default=0, help="first seed (default: %(default)s)")
     sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,
@@ -332,7 +339,8 @@ def run(args) -> int:
         from .sim import sitl
         _require_current_code()
         return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting,
-                         servo_lag=args.servo_lag_ms / 1000, link_delay=args.link_delay)
+                         servo_lag=None if args.servo_lag_ms is None else args.servo_lag_ms / 1000,
+                         link_delay=args.link_delay, supply=args.supply)
     return demo(args)
 
 

@@ -529,6 +529,37 @@ class AX12:
         t[46] = int(bool(moving))                                    # Moving
 
 
+@dataclass
+class Supply:
+    """The servos' supply as it reaches them: a battery of `volts` (open circuit) behind
+    `resistance` ohms (its cells, the wiring and the board's supply switch), each powered
+    servo drawing `idle_amps` at rest and up to `moving_amps` more in proportion to its
+    speed as a share of its no-load speed at that supply. The voltage sags as the servos
+    move (their speed cap with it) and Present Voltage reads it.
+
+    The AX-12A's figures: 50 mA on standby and 1.5 A at stall (12 V) in the e-manual;
+    `moving_amps` is the current of a joint turning at full speed under the arm's own
+    weight and inertia, a third of stall (an assumption, not a measured figure). A 3S
+    lithium battery spends a flight between 12.6 V (full) and about 10 V under load.
+    """
+    volts: float = 11.1
+    resistance: float = 0.25
+    idle_amps: float = 0.05
+    moving_amps: float = 0.5
+
+    def sagged(self, speeds: list[float]) -> float:
+        """The voltage at the servos when they turn at these shares of their no-load speed."""
+        amps = sum(self.idle_amps + self.moving_amps * min(abs(s), 1.0) for s in speeds)
+        return self.volts - self.resistance * amps
+
+
+def supply_of(supply: Supply | float | None) -> Supply:
+    """A Supply from itself, its open-circuit volts, or None (the default battery)."""
+    if isinstance(supply, Supply):
+        return supply
+    return Supply() if supply is None else Supply(volts=float(supply))
+
+
 class AX12Bus:
     """A half-duplex Protocol 1.0 bus: the master's bytes, servos, and their replies in time.
 
@@ -541,10 +572,12 @@ class AX12Bus:
           servo's state.
     """
 
-    def __init__(self, servos=(), *, baud: float = 1_000_000, echo: bool = False, lazy: bool = False):
+    def __init__(self, servos=(), *, baud: float = 1_000_000, echo: bool = False, lazy: bool = False,
+                 supply: Supply | None = None):
         self.baud = baud
         self.echo = echo
         self.lazy = lazy
+        self.supply = supply
         self.time = 0.0
         self._servo_time = 0.0
         self.servos: list[AX12] = []
@@ -631,7 +664,11 @@ class AX12Bus:
                 servo.power_off()
 
     def set_supply_voltage(self, volts: float) -> None:
+        """The supply's voltage from now on (with a Supply: its open-circuit voltage, sagging
+        as the servos move)."""
         self.sync()
+        if self.supply is not None:
+            self.supply.volts = volts
         for servo in self.servos:
             servo.voltage = volts
 
@@ -644,9 +681,21 @@ class AX12Bus:
     def sync(self) -> None:
         """Bring the servos' motion up to the bus time."""
         if self.time > self._servo_time:
+            dt = self.time - self._servo_time
+            before = [servo.position for servo in self.servos]
             for servo in self.servos:
-                servo.step(self.time - self._servo_time)
+                servo.step(dt)
             self._servo_time = self.time
+            if self.supply is not None:
+                self._sag(before, dt)
+
+    def _sag(self, before: list[float], dt: float) -> None:
+        """The supply's voltage after an interval of dt in which the shafts moved from `before`."""
+        shares = [abs(s.position - p) / dt / s.max_speed() if s.powered and s.max_speed() > 0 else 0.0
+                  for s, p in zip(self.servos, before)]
+        volts = self.supply.sagged([x for s, x in zip(self.servos, shares) if s.powered])
+        for servo in self.servos:
+            servo.voltage = volts
 
     def _send_reply(self, start: float, data: bytes) -> None:
         for k, byte in enumerate(data):

@@ -138,7 +138,9 @@ class SimBoard:
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
     the last heartbeats (long runs such as the SITL); servo_lag: the default servos' shaft
     lag behind their speed-limited profile (s, first order, stopping within the compliance
-    margin; 0: none); sensor: the MPU-6050's sensor model
+    margin; 0: none; None: the model file's servo.response_lag); supply: the servos' supply
+    (ax12_sim.Supply, or its open-circuit volts; default a 3S battery at 11.1 V that sags as
+    the servos move, their speed cap with it); sensor: the MPU-6050's sensor model
     (uavarm.sim.imu_model.Mpu6050Sensor; default: datasheet white noise only, seed 0). A motion
     gives the base frame's attitude(t) and imu(t) in base axes; the board turns the latter
     into the IMU's axes with the model's mounting rotation (or imu_mounting_rpy_deg, the
@@ -154,7 +156,8 @@ class SimBoard:
     def __init__(self, model=None, *, servos=None, motion=None, start_us: int = 0,
                  poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True,
                  sensor: Mpu6050Sensor | None = None, imu_clock_error: float = 0.0,
-                 imu_mounting_rpy_deg: tuple[float, float, float] | None = None, servo_lag: float = 0.0):
+                 imu_mounting_rpy_deg: tuple[float, float, float] | None = None, servo_lag: float | None = None,
+                 supply: ax12_sim.Supply | float | None = None):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -162,9 +165,10 @@ class SimBoard:
         self.lib.host_port_init(self.hp, m.servo_baud, m.imu_address)
         self.imu = Mpu6050(memoryview(self.ffi.buffer(self.hp.imu_regs)))
         if servos is None:
-            servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}, time_constant=servo_lag,
-                                    deadband=servo_lag > 0) for s in m.servos]
-        self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo)
+            lag = m.servo_response_lag if servo_lag is None else servo_lag
+            servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}, time_constant=lag,
+                                    deadband=lag > 0) for s in m.servos]
+        self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo, supply=ax12_sim.supply_of(supply))
         self.bus.power(False)
         self.motion = motion or Gravity()
         self.sensor = sensor or Mpu6050Sensor("white", seed=0)
@@ -192,6 +196,7 @@ class SimBoard:
         self.commands: list[SyncCommand] = []
         self.power_log: list[tuple[float, bool]] = []
         self.link_out = bytearray()           # bytes the board sent to the drone, not yet taken
+        self.shaft_trace: list | None = None  # set to [] to record (us, supply on, shaft units...) every step
         self.record = record
         self._buf = self.ffi.new("uint8_t[]", 512)
         self.app = self.ffi.new("app_t *")
@@ -226,6 +231,8 @@ class SimBoard:
         """Advance dt_us, then run one pass of the firmware's main loop."""
         self.now_us += dt_us
         self.bus.run_until(self.time)
+        if self.shaft_trace is not None:
+            self.shaft_trace.append((self.now_us, self._power, *(s.position for s in self.bus.servos)))
         rx = self.bus.read()
         if rx:
             self.servo_rx_bytes += len(rx)

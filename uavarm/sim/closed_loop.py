@@ -48,6 +48,7 @@ class Settings:
     engage_at: float = 1.5           # s after the flight starts (enable at power-up)
     poll_us: int = 250               # main-loop period of the simulated board
     servo_lag: float | None = None   # s; None: the model file's servo.response_lag
+    supply: float | None = None      # V, the servos' battery (sagging as they move); None: ax12_sim.Supply's
     servo_deadband: bool = True      # the compliance margin: no torque within 1 unit of the goal
     drone_attitude: bool | None = None   # send the link attitude; None: when the firmware fuses it
     drone_velocity: bool | None = None   # send the link velocity; None: when the firmware fuses it
@@ -213,7 +214,8 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
                                      vibration_from=st.preflight)
     lag = servo_lag_of(st, model)
     board = SimBoard(model, servos=make_servos(model, lag, st.servo_deadband), motion=motion,
-                     poll_us=st.poll_us, lib=(variant.ffi, variant.lib), record=False, sensor=sensor)
+                     poll_us=st.poll_us, lib=(variant.ffi, variant.lib), record=False, sensor=sensor,
+                     supply=st.supply)
     board.bus.lazy = True                   # servos stepped at bus traffic; sync() before reading them
     send_attitude = fuses(model, "drone_attitude") if st.drone_attitude is None else st.drone_attitude
     send_velocity = fuses(model, "drone_velocity") if st.drone_velocity is None else st.drone_velocity

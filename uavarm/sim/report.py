@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..build import generated, variants
-from . import closed_loop, scenarios
+from . import ax12_sim, closed_loop, scenarios
 
 REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
 REPORT_ESTIMATORS = ("complementary", "quaternion", "imu-velocity", "link", "link-velocity")
@@ -179,8 +179,10 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=REPORT_SEEDS)
     ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--supply", type=float, default=None, metavar="VOLTS",
+                    help="the simulated servos' battery, open circuit (default: ax12_sim.Supply's)")
     args = ap.parse_args(argv)
-    settings = replace(closed_loop.Settings(), seconds=args.seconds)
+    settings = replace(closed_loop.Settings(), seconds=args.seconds, supply=args.supply)
     try:
         changes = build_variants(args.estimators, args.sets)
         loaded = {name: scenarios.load(name) for name in args.scenarios}
@@ -209,8 +211,8 @@ def main(argv=None) -> int:
     settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
                      f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
                      f"into the flight and {settings.settle:.0f} s settling; main loop every {settings.poll_us} us; "
-                     f"servo lag {servo_lag * 1e3:.1f} ms; "
-                     f"IMU profile per scenario "
+                     f"servo lag {servo_lag * 1e3:.1f} ms, servo supply {ax12_sim.supply_of(settings.supply).volts:g} V "
+                     f"sagging as they move; IMU profile per scenario "
                      f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
                      f"extra model edits: {args.sets or 'none'}")
     md = ["# Closed-loop simulator report", "", "Command: `make sim-report` "
@@ -247,6 +249,7 @@ def sim_command(args) -> int:
     settings = replace(closed_loop.Settings(), seconds=args.seconds, settle=args.settle, poll_us=args.poll_us,
                        preflight=args.preflight,
                        servo_lag=None if args.servo_lag_ms is None else args.servo_lag_ms / 1000,
+                       supply=args.supply,
                        drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude],
                        drone_velocity={"auto": None, "on": True, "off": False}[args.link_velocity])
     label = label_of(args.estimator, args.sets)
@@ -264,8 +267,8 @@ def sim_command(args) -> int:
         rows[-1].label = f"{label} (all {len(results)} seeds)"
     print(f"scenario {scenario.name} ({args.scenario}), IMU {scenario.imu_profile}, "
           f"drone messages over the link: {results[0][0].link_messages or 'none'}, servo lag "
-          f"{closed_loop.servo_lag_of(settings, variants.build(changes).model) * 1e3:.1f} ms; "
-          f"scored {args.seconds:g} s "
+          f"{closed_loop.servo_lag_of(settings, variants.build(changes).model) * 1e3:.1f} ms, servo supply "
+          f"{ax12_sim.supply_of(settings.supply).volts:g} V; scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))
     for line in notes(rows[-1], scenario.target):

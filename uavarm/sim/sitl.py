@@ -52,7 +52,7 @@ class Sitl:
     def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None,
                  link_delay: tuple[float, float] = (0.0, 0.0), **board_options):
         """link_delay: seconds (simulated) the link's bytes take to the board and back from it;
-        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag: the hardware as it is)."""
+        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag, supply: the hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
         if not all(0 <= d <= 1 for d in link_delay):
@@ -150,12 +150,14 @@ def link_delay_of(text: str) -> tuple[float, float]:
 
 
 def main(scenario: str | None, speed: float, imu: str = "white", seed: int = 0,
-         imu_mounting: tuple[float, float, float] | None = None, servo_lag: float = 0.0,
-         link_delay: tuple[float, float] = (0.0, 0.0)) -> int:
+         imu_mounting: tuple[float, float, float] | None = None, servo_lag: float | None = None,
+         link_delay: tuple[float, float] = (0.0, 0.0), supply: float | None = None) -> int:
     sitl = Sitl(scenario, speed=speed, sensor=Mpu6050Sensor(imu, seed=seed), imu_mounting_rpy_deg=imu_mounting,
-                servo_lag=servo_lag, link_delay=link_delay)
+                servo_lag=servo_lag, link_delay=link_delay, supply=supply)
+    lag = sitl.board.model.servo_response_lag if servo_lag is None else servo_lag
     print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x, IMU {imu} "
-          f"seed {seed}, servo lag {servo_lag * 1000:g} ms, link delay {link_delay[0] * 1000:g} ms in, "
+          f"seed {seed}, servo lag {lag * 1000:g} ms, supply {sitl.board.bus.supply.volts:g} V, "
+          f"link delay {link_delay[0] * 1000:g} ms in, "
           f"{link_delay[1] * 1000:g} ms out); Ctrl-C stops", flush=True)
     try:
         sitl.run()

@@ -18,6 +18,10 @@
  * An engaged arm also parks when the IMU gives no usable sample for APP_IMU_STALE_TICKS
  * ticks (absent, not sampling, or at full scale) or a servo stops following its goal
  * (servo_track.h); engage is refused while either stands.
+ * Every goal is checked as a move from wherever the shafts may be (between each servo's
+ * latest reading and the goals that may still pull it: servo_bus.h), and moves no faster
+ * than the slowest servo can at the supply it reports; while a shaft is far behind its goal
+ * the goals wait for it (flagged servo_lagging, with the joint).
  * The heartbeat reports the imu, imu_saturated and servo_tracking bits if they stood at
  * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
  * as they stand.
@@ -53,7 +57,7 @@ extern "C" {
 #endif
 
 /* cffi:begin */
-#define APP_FIRMWARE_VERSION 0x000300u   /* 0.3.0: major, minor, patch bytes (the heartbeat's "firmware") */
+#define APP_FIRMWARE_VERSION 0x000400u   /* 0.4.0: major, minor, patch bytes (the heartbeat's "firmware") */
 #define APP_IMU_RETRY_MS 1000
 #define APP_CLOCK_STALL_TICKS 3        /* ticks in a row with the microsecond clock standing still */
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
@@ -108,6 +112,7 @@ typedef struct {
     bool imu_saturated;            /* the latest sample had an axis at full scale */
     uint32_t imu_samples_used;
     uint16_t faults_since_heartbeat;   /* held fault bits seen at ticks since the last heartbeat */
+    uint8_t lagging_since_heartbeat;   /* servos found behind their goals since then (bits) */
     /* timing */
     volatile uint32_t ticks_requested;
     uint32_t ticks_run;
@@ -143,10 +148,11 @@ void app_poll(app_t *app);
 void app_watch(app_t *app);
 /* Is the loop healthy (ticks running, the clock moving)? The board feeds its watchdog only then. */
 bool app_healthy(const app_t *app);
-/* The goal to send after `sent` (the last goal sent): motion.c's proposal (following target,
- * tilted base frame, mm, unless NULL), checked with kin_check_move, offered smaller while
- * refused, `sent` again if nothing passes; the speed of its step. command_servos' core. */
-motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float sent[3], float q[3]);
+/* The next goal: motion.c's proposal (following target, tilted base frame, mm, unless NULL),
+ * checked with kin_check_span as a move from wherever the shafts may be (joint i between
+ * shafts[0][i] and shafts[1][i], rad), offered smaller while refused, the last goal again if
+ * nothing passes; the speed of its step. command_servos' core. */
+motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float shafts[2][3], float q[3]);
 /* The heartbeat fault bits (MSG_FAULT_*) as they stand. */
 uint16_t app_faults(const app_t *app);
 /* cffi:end */

@@ -11,7 +11,7 @@
  * park pose's, or hanging straight down: inside the leg distance, so joint 1 may turn
  * anywhere), its mirror image or straight down, joint 1 round, then out to the aim; if no
  * way is clear, the move is refused. Each tick's goal is at most one step (the speed in use
- * times the tick) from the last, all joints in proportion; the application checks it
+ * times the tick, and at most step_cap) from the last, all joints in proportion; the application checks it
  * (kin_check_move), and a step refused is halved twice, then tried for joint 1 alone and
  * for joints 2-3 alone (out of a leg's sector before reaching out), then the arm holds.
  *
@@ -28,9 +28,11 @@ extern "C" {
 #endif
 
 /* Every goal the application sends must be clear with every joint this far (rad) either way
- * (kin_check_move): the arm never rests where the check's slack would keep it from moving
- * away again (0.2 deg puts the body and the legs a few tenths of a millimetre off). */
-#define MOTION_GOAL_MARGIN 0.0035f
+ * (kin_check_move): the arm never rests where the check of where its shafts may be would keep
+ * it from moving away again. A shaft at rest reads up to a unit from its goal (its compliance
+ * margin) and stands within half a unit of its reading: 1.5 AX-12A units of 300/1023 deg,
+ * 0.0077 rad (0.9 mm at full stretch). */
+#define MOTION_GOAL_MARGIN 0.0078f
 
 /* cffi:begin */
 #define MOTION_LEG_NONE 0          /* no leg in the way of the aim */
@@ -53,6 +55,10 @@ typedef struct {
     bool q1_held;                  /* the target is near joint 1's axis: joint 1 holds */
     uint8_t leg_aim;               /* MOTION_LEG_*: where a target past a leg's reach is aimed */
     unsigned given_up;             /* KIN_BRANCH_* of the latest following */
+    float step_cap;                /* the most a goal may move per tick (rad) whatever its speed: what
+                                      the servos can do at their supply; 0 holds (the goals wait
+                                      for a shaft that fell behind). motion_start: no cap */
+    float step;                    /* the latest step's length (rad, the joint that moves most) */
     float share;                   /* the latest step's share of the way to its destination */
     uint8_t tries;                 /* smaller steps offered since (motion_smaller) */
     bool blocked;                  /* the latest goal did not move, short of the destination */
@@ -111,7 +117,8 @@ static inline void motion_done(motion_t *m, const float q[3])
 {
     const float *dest = motion_destination(m);
     const bool there = q[0] == dest[0] && q[1] == dest[1] && q[2] == dest[2];
-    m->blocked = !there && q[0] == m->q[0] && q[1] == m->q[1] && q[2] == m->q[2];
+    /* (held on purpose, by a step cap of 0, is not blocked) */
+    m->blocked = !there && m->step_cap > 0.0f && q[0] == m->q[0] && q[1] == m->q[1] && q[2] == m->q[2];
     if (there) {
         if (m->next_via < m->vias) m->next_via++;
         else m->arrived = true;

@@ -430,20 +430,50 @@ static bool start_motion(app_t *app)
     return true;
 }
 
-motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float sent[3], float q[3])
+motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float shafts[2][3], float q[3])
 {
     const motion_speed_t speed = motion_tick(mo, target, pinned, q);
-    /* Last line of defence, whatever motion.c proposed: the move from the last goal sent,
-     * whichever way the servos take it, passes the generated checks; a refused one is
-     * tried smaller, and the arm holds (the last goal again) if none passes. */
-    while (kin_check_move(sent, q, MOTION_GOAL_MARGIN) != KIN_OK) {
+    /* Last line of defence, whatever motion.c proposed: every pose between where the shafts
+     * may be and the new goal, whichever way the servos take it, passes the generated
+     * checks; a refused goal is tried smaller, and the arm holds (the last goal again, which
+     * the shafts were already checked on their way to) if none passes. */
+    while (kin_check_span(shafts[0], shafts[1], q, MOTION_GOAL_MARGIN) != KIN_OK) {
         if (!motion_smaller(mo, q)) {
-            memcpy(q, sent, 3 * sizeof q[0]);
+            memcpy(q, mo->q, 3 * sizeof q[0]);
             break;
         }
     }
     motion_done(mo, q);
     return speed;
+}
+
+/* Where the shafts may be (rad): joint i between shafts[0][i] and shafts[1][i] (servo_bus.h),
+ * widened by the half unit a reading rounds the shaft to. */
+static void shaft_span(const sbus_t *bus, float shafts[2][3])
+{
+    static const float ROUNDING = 0.5f * MODEL_RAD_PER_UNIT;
+    uint16_t lo[SBUS_SERVOS], hi[SBUS_SERVOS];
+    for (int i = 0; i < SBUS_SERVOS; ++i) sbus_shaft_span(&bus->servo[i], &lo[i], &hi[i]);
+    servo_units_to_joints(lo, shafts[0]);
+    servo_units_to_joints(hi, shafts[1]);
+    for (int i = 0; i < 3; ++i) {
+        const float a = shafts[0][i], b = shafts[1][i];   /* (a servo may turn its joint the other way) */
+        shafts[0][i] = (a < b ? a : b) - ROUNDING;
+        shafts[1][i] = (a < b ? b : a) + ROUNDING;
+    }
+}
+
+/* The most a goal may move per tick: what the slowest servo can do at the supply it reports
+ * (its no-load speed falls in proportion to Present Voltage); nothing while a shaft is
+ * behind its goal (servo_track.h): the goals wait for it. */
+static float step_cap(const app_t *app, bool behind)
+{
+    uint8_t lowest = UINT8_MAX;
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        const uint8_t v = app->bus.servo[i].present_voltage;
+        if (v < lowest) lowest = v;
+    }
+    return behind ? 0.0f : MODEL_STEP_PER_DECIVOLT * (float)lowest;
 }
 
 /* This tick's goal, sent with the speed its step was for. */
@@ -460,11 +490,13 @@ static void command_servos(app_t *app)
         return;
     }
     if (!mo->started && !start_motion(app)) return;
-    float p[3], q[3];
+    float p[3], q[3], shafts[2][3];
     uint16_t units[SBUS_SERVOS];
     const bool following = app->engaged && app->parked;
     if (following) stab_command_point(&app->stab, app->set_position, p);
-    const motion_speed_t speed = app_next_goal(mo, following ? p : NULL, app->set_on_axis, app->q_cmd, q);
+    shaft_span(&app->bus, shafts);
+    mo->step_cap = step_cap(app, track_behind(&app->track) != 0);
+    const motion_speed_t speed = app_next_goal(mo, following ? p : NULL, app->set_on_axis, shafts, q);
     app->out_of_reach = following && mo->given_up != 0;
     if (!app->parked && mo->arrived && memcmp(mo->aim, PARK, sizeof PARK) == 0) {
         app->parked = true;
@@ -481,9 +513,14 @@ static void command_servos(app_t *app)
  * servo_tracking bits, on their own: the whole word is only needed at heartbeats and LEDs. */
 static void hold_faults(app_t *app, bool imu_usable_now, bool tracking_fault)
 {
+    const uint8_t behind = track_behind(&app->track);
     if (!imu_usable_now) app->faults_since_heartbeat |= MSG_FAULT_IMU;
     if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
     if (tracking_fault) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
+    if (behind) {
+        app->faults_since_heartbeat |= MSG_FAULT_SERVO_LAGGING;
+        app->lagging_since_heartbeat |= behind;
+    }
     if (app->motion.blocked) app->faults_since_heartbeat |= MSG_FAULT_MOTION_BLOCKED;
 }
 
@@ -555,6 +592,7 @@ uint16_t app_faults(const app_t *app)
     if (!imu_usable(app)) f |= MSG_FAULT_IMU;
     if (app->imu_saturated) f |= MSG_FAULT_IMU_SATURATED;
     if (track_fault(&app->track)) f |= MSG_FAULT_SERVO_TRACKING;
+    if (track_behind(&app->track)) f |= MSG_FAULT_SERVO_LAGGING;
     if (app->link_lost) f |= MSG_FAULT_LINK_LOST;
     if (app->out_of_reach) f |= MSG_FAULT_OUT_OF_REACH;
     if (app->refused) f |= MSG_FAULT_COMMAND_REFUSED;
@@ -648,9 +686,11 @@ static void send_heartbeat(app_t *app)
     hb.servo3_voltage = s[2].present_voltage;
     hb.servo3_temperature = s[2].present_temperature;
     hb.servo3_load = s[2].present_load;
+    hb.lagging_joints = (uint8_t)(track_behind(&app->track) | app->lagging_since_heartbeat);
     if (send_payload(app, payload, msg_heartbeat_pack(&hb, payload, sizeof payload))) {
         app->heartbeats_sent++;
         app->faults_since_heartbeat = 0;
+        app->lagging_since_heartbeat = 0;
     } else {
         app->heartbeats_dropped++;
     }

@@ -64,6 +64,7 @@ bool motion_start(motion_t *m, const float q[3])
     m->elbow = q[2] < 0.0f ? -1.0f : 1.0f;
     m->arrived = true;
     m->started = true;
+    m->step_cap = MODEL_WORKING_STEP;
     return true;
 }
 
@@ -148,8 +149,11 @@ bool motion_head_for(motion_t *m, const float p_base[3], const float p_level[3])
  * the leg distance; the one taken is kept until the other is LEG_SWITCH nearer (no flipping
  * between two poses centimetres apart on noise). An aim that is not clear falls back to the
  * other, then to the step checks. */
-#define LEG_EDGE (MODEL_LEG_HALF_WIDTH + 2.0f * MOTION_GOAL_MARGIN)   /* rad from a leg's plane */
-#define LEG_INSIDE (MODEL_LEG_DISTANCE - 1.0f)                         /* mm from joint 1's axis */
+#define LEG_EDGE (MODEL_LEG_HALF_WIDTH + MOTION_GOAL_MARGIN + 0.0035f)   /* rad from a leg's plane: clear by the
+                                                                           goals' margin and 0.2 deg */
+/* mm from joint 1's axis: inside the leg distance by what the goals' margin on joints 2 and 3
+ * may add to the reach (the arm's length times it) and half a millimetre */
+#define LEG_INSIDE (MODEL_LEG_DISTANCE - (MODEL_L2 + MODEL_L3) * MOTION_GOAL_MARGIN - 0.5f)
 #define LEG_SWITCH 2.0f                                                /* mm */
 
 #if MODEL_LEG_PLANES > 0
@@ -241,8 +245,9 @@ static inline void follow(motion_t *m, const float p_base[3], bool pinned)
 }
 
 /* A refused step's other tries, in order: half, a quarter (all joints in proportion); then
- * joint 1 alone and joints 2-3 alone, the whole step's share, for a step that crosses the
- * edge of a leg's sector while reaching out or in (turn out first, or pull in first). */
+ * joint 1 alone and joints 2-3 alone, each a whole step of its own (as far as the speed
+ * moves the joints that move), for a step that crosses the edge of a leg's sector while
+ * reaching out or in (turn out first, or pull in first). */
 static const float TRY_SHARE[4] = { 0.5f, 0.25f, 1.0f, 1.0f };
 static const uint8_t TRY_JOINTS[4] = { 7u, 7u, 1u, 6u };
 
@@ -256,8 +261,9 @@ motion_speed_t motion_tick(motion_t *m, const float *target, bool pinned, float 
     }
     /* one step toward the next corner or the aim, all joints in proportion */
     const float *dest = motion_destination(m);
-    const float big = largest_change(m->q, dest), max_step = STEP[speed];
+    const float big = largest_change(m->q, dest), max_step = fm_minf(STEP[speed], m->step_cap);
     m->tries = 0;
+    m->step = max_step;
     if (big > max_step) {
         m->share = max_step / big;
         for (int i = 0; i < 3; ++i) q_next[i] = m->q[i] + m->share * (dest[i] - m->q[i]);
@@ -273,8 +279,14 @@ bool motion_smaller(motion_t *m, float q_next[3])
     if (m->tries >= 4) return false;
     const float *dest = motion_destination(m);
     const int t = m->tries++;
-    for (int i = 0; i < 3; ++i) {
-        q_next[i] = TRY_JOINTS[t] & (1u << i) ? m->q[i] + m->share * TRY_SHARE[t] * (dest[i] - m->q[i]) : m->q[i];
+    float share = m->share * TRY_SHARE[t];
+    if (TRY_JOINTS[t] != 7u) {   /* the joints that move, at the speed's own step */
+        float big = 0.0f;
+        for (int i = 0; i < 3; ++i) {
+            if (TRY_JOINTS[t] & (1u << i)) big = fm_maxf(big, fabsf(dest[i] - m->q[i]));
+        }
+        share = big > m->step ? m->step / big : 1.0f;
     }
+    for (int i = 0; i < 3; ++i) q_next[i] = TRY_JOINTS[t] & (1u << i) ? m->q[i] + share * (dest[i] - m->q[i]) : m->q[i];
     return true;
 }

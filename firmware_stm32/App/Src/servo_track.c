@@ -21,12 +21,20 @@ static inline __attribute__((always_inline)) bool tracks(const track_servo_t *w,
 {
     const int32_t error = (int32_t)goal - (int32_t)pos;
     if (abs32(error) <= TRACK_TOL_UNITS) return true;
+    if (abs32(error) > (int32_t)MODEL_SERVO_GAP_MAX) return false;   /* behind */
     const int32_t left = (int32_t)goal - (int32_t)w->last_position;
     const int32_t moved = ((int32_t)pos - (int32_t)w->last_position) * (left < 0 ? -1 : 1);
     if (moved <= 0) return false;   /* (no progress at all: the float part is not needed) */
     const float allowed = (float)(speed & 0x3FFu) * MODEL_UNITS_PER_S_PER_SPEED * ((float)dt_us * 1e-6f);
     const float wanted = (float)abs32(left) < allowed ? (float)abs32(left) : allowed;
     return (float)moved >= TRACK_MIN_PROGRESS * wanted;
+}
+
+uint8_t track_behind(const track_t *t)
+{
+    uint8_t bits = 0;
+    for (int i = 0; i < SBUS_SERVOS; ++i) bits |= (uint8_t)(t->servo[i].behind << i);
+    return bits;
 }
 
 bool track_fault(const track_t *t)
@@ -44,6 +52,8 @@ static inline __attribute__((always_inline)) void look_at_servo(track_t *t, cons
     const sbus_servo_t *s = &bus->servo[i];
     if (s->reads == w->reads_seen) return;
     w->reads_seen = s->reads;
+    const int32_t gap = (int32_t)bus->goal[i] - (int32_t)s->present_position;
+    w->behind = abs32(gap) > (int32_t)MODEL_SERVO_GAP_MAX;
     const uint32_t dt_us = now_us - w->last_us;
     if (w->have_last) {
         if (tracks(w, s->present_position, bus->goal[i], bus->speed[i], dt_us)) {
