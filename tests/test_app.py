@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 import oracles
 from invariants import Invariants
 from simboard_tools import (
-    FAULT, IDS, MODEL, PARK_Q, PARK_SPEED, PARK_UNITS, TICK, TRANSIT_SPEED, UNIT_RAD, UNIT_RANGE, WORKING_SPEED,
+    FAULT, FK_TOL_MM, IDS, MODEL, PARK_Q, PARK_SPEED, PARK_UNITS, TICK, TRANSIT_SPEED, UNIT_RAD, UNIT_RANGE, WORKING_SPEED,
     BusLog, ee_of_units, joint_units, level_ik_ok, make_board, max_unit_step, pose_ok, run_to_next_heartbeat,
     run_until, ready, running,
     Tilt, shaft_units, sync_goal_speed, units_to_joints,
@@ -31,7 +31,6 @@ TARGET = (70.0, -20.0, -95.0)         # reachable, clear of the legs (theta1 ~ 1
 OTHER = (40.0, 45.0, -120.0)
 HB = MODEL.heartbeat_period
 SILENCE = MODEL.link_silence_timeout
-FK_TOL_MM = 1.0                       # half a unit (0.15 deg) per joint at ~140 mm reach
 STAB_TOL_MM = 1.5
 STAB_TARGET = np.array([45.0, -10.0, -115.0])   # reachable at every tilt of the test with the mount offset
 UNITS_PER_S_PER_SPEED_UNIT = 0.111 * 6 * 1023 / 300   # AX-12A e-manual: 0.111 rpm per unit
@@ -44,19 +43,20 @@ def set_position(board, p):
 def at_goal(board, log, since=-1.0):
     """The goals have stopped moving (the last three SYNC_WRITEs sent after `since` within a
     unit of each other: the estimate's noise may flip a rounding) and the shafts stand on
-    the latest."""
+    the latest, within the compliance margin (a unit) at which a lagging shaft stops."""
     syncs = log.syncs(since)
     if len(syncs) < 3:
         return False
     goals = [sync_goal_speed(p.raw)[0] for p in syncs[-3:]]
     steady = all(abs(a - b) <= 1 for g in goals[:-1] for a, b in zip(g, goals[-1]))
-    return steady and all(abs(s - g) < 1e-9 for s, g in zip(shaft_units(board), goals[-1]))
+    return steady and all(abs(s - g) <= 1.0 for s, g in zip(shaft_units(board), goals[-1]))
 
 
 def near_park(board, tol=None):
-    """Shafts within tol units of the park pose, or (tol None) exactly on its goal."""
+    """Shafts within tol units of the park pose, or (tol None) stopped on its goal: within the
+    compliance margin (a unit) of it."""
     if tol is None:
-        return shaft_units(board) == [round(u) for u in PARK_UNITS]
+        return all(abs(s - round(p)) <= 1.0 for s, p in zip(shaft_units(board), PARK_UNITS))
     return all(abs(s - p) <= tol for s, p in zip(shaft_units(board), PARK_UNITS))
 
 
@@ -98,7 +98,7 @@ def test_the_test_oracles_themselves():
 # ---------------------------------------------------------------- states
 
 def test_enable_parks_at_park_speed():
-    board = make_board(at=[512, 512, 512])
+    board = make_board(at=[512, 512, 512], lag=0.0)   # shafts on their profile: the park speed is measured
     log = BusLog(board)
     board.send("enable", on=1)
     t_on = board.time

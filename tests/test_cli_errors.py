@@ -153,8 +153,8 @@ def test_version_is_the_package_version():
     proc = uavarm("--version")
     out, err = finished(proc)
     assert proc.returncode == 0 and out.startswith(f"uavarm {version} ")
-    # app.h: APP_FIRMWARE_VERSION 0x000300u, 0.3.0
-    assert "(firmware 0.3.0)" in out
+    # app.h: APP_FIRMWARE_VERSION 0x000400u, 0.4.0
+    assert "(firmware 0.4.0)" in out
 
 
 def test_codegen_help_names_the_command(capsys):

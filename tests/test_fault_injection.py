@@ -21,7 +21,7 @@ import pytest
 
 from invariants import Invariants
 from simboard_tools import (
-    FAULT, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, ready, running,
+    FAULT, FK_TOL_MM, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, ready, running,
     shaft_units, sync_goal_speed,
 )
 from uavarm.link import llcp, messages
@@ -30,7 +30,6 @@ from uavarm.sim.board import SimBoard, baud_register
 
 TARGET = (70.0, -20.0, -95.0)
 OTHER = (40.0, 45.0, -120.0)
-FK_TOL_MM = 1.0
 SILENCE = MODEL.link_silence_timeout
 # AX-12A e-manual, status packet error byte
 ERROR_BITS = ["input_voltage", "angle_limit", "overheating", "range", "checksum", "overload", "instruction"]
@@ -45,7 +44,8 @@ def at(board, p, tol=FK_TOL_MM) -> bool:
 
 
 def parked(board, tol=1.0) -> bool:
-    return all(abs(s - u) <= tol for s, u in zip(shaft_units(board), PARK_UNITS))
+    """Within tol units of the park goal: a lagging shaft stops within its compliance margin (a unit)."""
+    return all(abs(s - round(u)) <= tol for s, u in zip(shaft_units(board), PARK_UNITS))
 
 
 def engaged_board(p=TARGET, **kw):

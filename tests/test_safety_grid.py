@@ -1,8 +1,10 @@
 """Exhaustive safety over pairs of poses: from start poses on a grid, to targets on a grid,
 at drone tilts up to +-30 deg, every goal the firmware's command path sends (engage, follow,
-disengage: app.c's own command_servos, tests/csrc/safety_grid.c) is a safe pose and the path the
-servos take to it from the previous goal is safe, by plain geometry; and the SymPy model's
-own IK selection never picks an unsafe pose."""
+disengage: app.c's own command_servos, tests/csrc/safety_grid.c) is a safe pose, the path the
+servos take to it from the previous goal is safe and, with the goals sent through the servo
+driver to servos that lag 0-45 ms and slow with a 9.0-12.6 V supply, the shafts themselves
+stand in safe poses, by plain geometry; and the SymPy model's own IK selection never picks
+an unsafe pose."""
 import hashlib
 import math
 
@@ -12,6 +14,7 @@ import sympy as sp
 from scipy.spatial.transform import Rotation
 
 import arm_spec
+import oracles
 from conftest import ROOT
 from oracles import check_pose, servo_path
 from uavarm.build import cbuild, firmware, generated
@@ -33,8 +36,7 @@ def grid(m):
     return targets, tilts
 
 
-@pytest.fixture(scope="module")
-def harness():
+def harness_lib():
     """safety_grid.c includes app.c (its static command path): app.c's hash joins the flags,
     so an edited app.c rebuilds."""
     app_c = firmware.APP / "Src" / "app.c"
@@ -43,6 +45,11 @@ def harness():
     return cbuild.load("safety_grid", sources, [HARNESS / "safety_grid.h"],
                        include_dirs=[generated.GENERATED, firmware.APP / "Inc", HARNESS, firmware.APP / "Src"],
                        extra_flags=[f"-DAPP_C_SHA=0x{tag}"])
+
+
+@pytest.fixture(scope="module")
+def harness():
+    return harness_lib()
 
 
 def assert_safe(m, q, what):
@@ -66,43 +73,108 @@ def start_poses(m):
     return np.vstack([np.radians(m.park_deg), poses[(status == 0) & clear]])
 
 
-def test_every_commanded_move_is_safe_from_any_start(harness):
-    """Pairs: start poses x targets on a 24 mm grid (inside and beyond the reach) x tilts of
-    0 and +-30 deg about each axis; 60 ticks following, 60 ticks disengaging. Each goal and
-    the servos' path from the one before (every joint at the same speed, each arriving at
-    its own time, sampled) pass the plain-geometry check."""
+# The servos' physics the grid runs on: no lag at a full battery, the model file's lag at a
+# nominal one, 45 ms at a flat one (each servo reports the supply, sag included); the
+# slowest on the full 24 mm grid of targets, the others on every other point of it (48 mm)
+PHYSICS = [(0.0, 12.6), (config.load().servo_response_lag, 11.1), (0.045, 9.0)]
+SPACING_MM = {PHYSICS[0]: 48.0, PHYSICS[1]: 48.0, PHYSICS[2]: 24.0}
+
+
+class Out:
+    """A grid_out_t with its arrays (numpy, so Python reads them without copying)."""
+
+    def __init__(self, ffi, goals: int, shafts: int):
+        self.goals, self.goal_run = np.empty((goals, 3), np.float32), np.empty(goals, np.uint32)
+        self.shafts, self.shaft_run = np.empty((shafts, 3), np.float32), np.empty(shafts, np.uint32)
+        self.c = ffi.new("grid_out_t *")
+        self.c.goals, self.c.goal_run = ffi.from_buffer("float[]", self.goals), ffi.from_buffer("uint32_t[]", self.goal_run)
+        self.c.shafts = ffi.from_buffer("float[]", self.shafts)
+        self.c.shaft_run = ffi.from_buffer("uint32_t[]", self.shaft_run)
+        self.c.cap_goals, self.c.cap_shafts = goals, shafts
+
+
+def run_grid(harness, start, targets, tilts, ticks, physics, out):
+    ffi, lib = harness
+    targets = np.ascontiguousarray(targets, dtype=np.float32)
+    tilts = np.ascontiguousarray(tilts, dtype=np.float32)
+    lib.safety_grid(ffi.new("float[3]", [float(v) for v in start]), ffi.from_buffer("float[]", targets), len(targets),
+                    ffi.from_buffer("float[]", tilts), len(tilts), ticks, physics[0], physics[1], out.c)
+    assert out.c.n_goals < out.c.cap_goals and out.c.n_shafts < out.c.cap_shafts
+    n, k = out.c.n_goals, out.c.n_shafts
+    return out.goals[:n].astype(np.float64), out.goal_run[:n], out.shafts[:k].astype(np.float64), out.c.refused
+
+
+@pytest.mark.parametrize("physics", PHYSICS, ids=lambda p: f"{p[0] * 1e3:.1f} ms {p[1]} V" if isinstance(p, tuple) else p)
+def test_every_commanded_move_is_safe_from_any_start(harness, physics):
+    """Pairs: start poses x targets on a 24 mm or 48 mm grid (inside and beyond the reach) x
+    tilts of 0 and +-30 deg about each axis; 60 ticks following, 60 ticks disengaging, the goals sent
+    through the servo driver to servos that lag and slow with their supply. Each goal and the
+    servos' path from the one before (every joint at the same speed, each arriving at its own
+    time, sampled) pass the plain-geometry check, and so do the shafts themselves after every 1 ms
+    step of the servos (in which one moved)."""
     ffi, lib = harness
     m = arm_spec.spec()      # the oracle's numbers, read apart from the generator
     reach = m.L1 + m.L2 + m.L3
-    xs = np.arange(-reach, reach + 0.1, 24.0)
-    zs = np.arange(-reach - 20.0, 20.1, 24.0)
+    xs = np.arange(-reach, reach + 0.1, SPACING_MM[physics])
+    zs = np.arange(-reach - 20.0, 20.1, SPACING_MM[physics])
     x, y, z = np.meshgrid(xs, xs, zs, indexing="ij")
-    targets = np.ascontiguousarray(np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1), dtype=np.float32)
-    tilts = np.ascontiguousarray(np.radians([[0, 0], [30, 0], [-30, 0], [0, 30], [0, -30]]), dtype=np.float32)
-    ticks, cap = 60, 2_000_000
-    goals = np.empty((cap, 3), dtype=np.float32)
-    run = np.empty(cap, dtype=np.uint32)
-    refused = ffi.new("uint32_t *")
-    moves = near = total_refused = 0
+    targets = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    tilts = np.radians([[0, 0], [30, 0], [-30, 0], [0, 30], [0, -30]])
+    out = Out(ffi, 2_000_000, 6_000_000)
+    moves = near = samples = total_refused = 0
+    clearance = math.inf
     starts = start_poses(m)
     for start in starts:
-        n = lib.safety_grid(ffi.new("float[3]", [float(v) for v in start]), ffi.from_buffer("float[]", targets),
-                            len(targets), ffi.from_buffer("float[]", tilts), len(tilts), ticks,
-                            ffi.from_buffer("float[]", goals), ffi.from_buffer("uint32_t[]", run), cap, refused)
-        assert n < cap
-        g = goals[:n].astype(np.float64)
+        g, run, shafts, refused = run_grid(harness, start, targets, tilts, 60, physics, out)
         near += assert_safe(m, g, f"goals from {np.degrees(start).round(1)}")
-        same_run = run[1:n] == run[:n - 1]
+        same_run = run[1:] == run[:-1]
         a = np.vstack([start, g[:-1]])[1:][same_run]            # previous goal of the same run
         b = g[1:][same_run]
         paths = servo_path(a, b, 5)[:, 1:-1].reshape(-1, 3)
         near += assert_safe(m, paths, f"paths from {np.degrees(start).round(1)}")
+        q = units_to_joints(m, shafts)
+        near += assert_safe(m, q, f"shafts from {np.degrees(start).round(1)}")
+        clearance = min(clearance, float(oracles.clearance_mm(m, q).min()))
         moves += len(a)
-        total_refused += refused[0]
+        samples += len(q)
+        total_refused += refused
     runs = len(starts) * len(targets) * len(tilts)
-    print(f"\n{len(starts)} start poses x {len(targets)} targets x {len(tilts)} tilts = {runs} engage/follow/"
-          f"disengage runs, {moves} moves checked along the servos' path, 0 unsafe ({near} samples within "
-          f"{MARGIN} of a boundary); {total_refused} routes refused")
+    print(f"\nlag {physics[0] * 1e3:.1f} ms, {physics[1]} V: {len(starts)} start poses x {len(targets)} targets x "
+          f"{len(tilts)} tilts = {runs} engage/follow/disengage runs, {moves} moves checked along the servos' path, "
+          f"{samples} shaft samples (every 1 ms step with one moving), 0 unsafe ({near} within {MARGIN} of a boundary), the shafts "
+          f"{clearance:.2f} mm clear of the body and the legs at least; {total_refused} routes refused")
+
+
+def test_the_harness_servo_moves_as_the_simulator_s():
+    """The harness's servo (C, for speed) against uavarm.sim.ax12_sim's AX-12A fed the same
+    goals and speeds through the bus: the same shaft, 1 ms by 1 ms, at every lag and supply."""
+    from uavarm.sim import ax12_sim
+    ffi, lib = harness_lib()
+    rng = np.random.default_rng(5)
+    for lag, volts in PHYSICS:
+        n = 600
+        goals = np.repeat(rng.integers(200, 800, n // 50), 50).astype(np.float32)
+        speeds = np.repeat(rng.choice([0, 90, 270, 532, 1023], n // 50), 50).astype(np.float32)
+        shafts = np.empty(n, np.float32)
+        lib.servo_model(lag, volts, ffi.from_buffer("float[]", goals), ffi.from_buffer("float[]", speeds), n, 500.0,
+                        ffi.from_buffer("float[]", shafts))
+        servo = ax12_sim.AX12(1, position=500.0, voltage=volts, time_constant=lag, deadband=lag > 0)
+        servo.set_register("torque_enable", 1)
+        ref = []
+        for g, v in zip(goals, speeds):
+            servo.set_register("goal_position", int(g))
+            servo.set_register("moving_speed", int(v))
+            servo.step(0.001)
+            ref.append(servo.position)
+        np.testing.assert_allclose(shafts, ref, atol=0.02, err_msg=f"lag {lag}, {volts} V")
+
+
+def units_to_joints(m, units):
+    """Joint angles (rad) of servo positions, from the model's zero and direction of each servo and
+    the AX-12A's 1023 units over 300 deg."""
+    zero = np.array([s.zero for s in m.servos], dtype=float)
+    direction = np.array([s.direction for s in m.servos], dtype=float)
+    return direction * (np.asarray(units, dtype=float) - zero) * math.radians(300.0) / 1023
 
 
 def test_from_park_every_reachable_target_gets_a_route(harness):
@@ -114,17 +186,10 @@ def test_from_park_every_reachable_target_gets_a_route(harness):
     m = arm_spec.spec()
     targets, _ = grid(m)
     targets = targets[::7]
-    reachable = np.ascontiguousarray(targets[[simboard_tools.level_ik_clear(p) for p in targets]], dtype=np.float32)
-    level = np.zeros((1, 2), dtype=np.float32)
-    goals = np.empty((len(reachable) * 120 + 1, 3), dtype=np.float32)
-    run = np.empty(len(goals), dtype=np.uint32)
-    refused = ffi.new("uint32_t *")
-    counts = []
-    for start in start_poses(m):
-        lib.safety_grid(ffi.new("float[3]", [float(v) for v in start]), ffi.from_buffer("float[]", reachable),
-                        len(reachable), ffi.from_buffer("float[]", level), 1, 60, ffi.from_buffer("float[]", goals),
-                        ffi.from_buffer("uint32_t[]", run), len(goals), refused)
-        counts.append(refused[0])
+    reachable = targets[[simboard_tools.level_ik_clear(p) for p in targets]]
+    level = np.zeros((1, 2))
+    out = Out(ffi, len(reachable) * 120 + 1, len(reachable) * 600 + 1)
+    counts = [run_grid(harness, start, reachable, level, 60, PHYSICS[1], out)[3] for start in start_poses(m)]
     print(f"\n{len(reachable)} reachable targets x {len(counts)} start poses, level: {sum(counts)} refused")
     assert sum(counts) == 0
 

@@ -388,7 +388,8 @@ def test_bus_echo_is_ignored():
         assert c.status_valid
     assert board.app.bus.stray_packets > 0, "the echo was there to be ignored"
     goal, _ = sync_goal_speed(log.syncs()[-1].raw)
-    assert [round(u) for u in [board.bus.servo(i).position for i in IDS]] == goal
+    # there, within the compliance margin (a unit) at which a lagging shaft stops
+    assert all(abs(board.bus.servo(i).position - g) <= 1.0 for i, g in zip(IDS, goal))
 
 
 # A parameter byte changed (the checksum no longer fits), or the checksum byte itself off by
