@@ -60,6 +60,7 @@ class Invariants:
         self._judged_from: float | None = None   # shafts judged from this time (commanded) on
         self.shaft_steps = 0
         self.clearance = math.inf
+        self.kept: list[tuple[np.ndarray, np.ndarray]] | None = None   # [] keeps (times, units) judged
 
     def power_at(self, t: float) -> tuple[bool, float]:
         """(on, since when) of the servo supply at time t."""
@@ -146,7 +147,16 @@ class Invariants:
         assert not len(bad), (f"shafts in an unsafe pose at {t[judged][bad[0]]:.4f} s", units[bad[0]],
                                np.degrees(units_to_joints(units[bad[0]])))
         self.shaft_steps += len(units)
+        if self.kept is not None:
+            self.kept.append((t[judged], units))
         self.clearance = min(self.clearance, float(oracles.clearance_mm(MODEL, units_to_joints(units)).min()))
+
+    def shafts_at(self, times) -> np.ndarray:
+        """The shafts (units, joint order) judged last at or before each of `times` (kept: set
+        `kept = []` first)."""
+        t = np.concatenate([k[0] for k in self.kept])
+        units = np.concatenate([k[1] for k in self.kept])
+        return units[np.maximum(np.searchsorted(t, times, side="right") - 1, 0)]
 
     def goals(self, since: float = -1.0) -> np.ndarray:
         """The SYNC_WRITE goals (units, one row per tick) sent after `since`."""

@@ -22,6 +22,7 @@ import pytest
 from invariants import Invariants
 from simboard_tools import (
     FAULT, FK_TOL_MM, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, ready, running,
+    speed_units_per_s,
     shaft_units, sync_goal_speed,
 )
 from uavarm.link import llcp, messages
@@ -170,11 +171,16 @@ def test_truncated_status_packets_time_out_and_recover(cut):
 class FaultyAX12(ax12_sim.AX12):
     """An AX-12A whose shaft can be stuck (does not follow its goal: a jammed gear) or
     drifting (overpowered by a load it cannot hold, or a slipping gear train: it creeps
-    away from its goal at `drift` units/s), whatever it is commanded. Present Position
-    reads the shaft, as the servo's potentiometer does."""
+    away from its goal at `drift` units/s), whatever it is commanded, or slowed (a load
+    it turns at only `slow` of its speed). Present Position reads the shaft, as the servo's
+    potentiometer does."""
 
     stuck = False
     drift = 0.0
+    slow = 1.0
+
+    def max_speed(self):
+        return super().max_speed() * self.slow
 
     def _advance(self, h):
         if self.stuck:
@@ -222,6 +228,8 @@ def test_stuck_servo_is_flagged_the_arm_parks_and_recovers(j):
     print(f"\nservo {j + 1} stuck: parking {(t_park - t0) * 1e3:.0f} ms after the move began, "
           f"flagged in the heartbeat at +{(t_flag - t0) * 1e3:.0f} ms")
     assert t_park - t0 <= 0.5
+    lagging = {hb["lagging_joints"] for hb in board.heartbeats if hb["faults"] & FAULT["servo_lagging"]}
+    assert lagging <= {1 << j}, "servo_lagging (if the stuck shaft falls far enough behind) names its joint alone"
     board.send("engage", on=1)
     hb = inv.next_heartbeat()
     assert hb["engaged"] == 0 and hb["faults"] & FAULT["command_refused"] and hb["faults"] & FAULT["servo_tracking"]
@@ -233,6 +241,41 @@ def test_stuck_servo_is_flagged_the_arm_parks_and_recovers(j):
     assert inv.run_until(lambda: at(board, OTHER), 1.5) is not None
     hb = inv.next_heartbeat()
     assert hb["engaged"] == 1 and hb["faults"] == 0, hb
+
+
+@pytest.mark.parametrize("slow", [0.3, 0.1])
+def test_a_slowed_servo_is_flagged_by_joint_and_the_goals_wait_for_it(slow):
+    """Joint 1's servo turns at 30 % or 10 % of its speed (a load it can hardly move; it
+    reports its supply as ever) while the arm moves to another target, joint 1 64 deg round:
+    its shaft falls behind, servo_lagging names joint 1 (lagging_joints), and the goals wait
+    for it, so no goal runs further ahead of its shaft than MODEL_SERVO_GAP_MAX (twice the
+    model's response lag at the working speed and a working step) and what the goals move
+    between two readings of it (three ticks); every shaft stays clear (Invariants). At 30 %
+    it catches up while the goals wait and the arm gets there; at 10 % it does not within
+    0.25 s: servo_tracking, the arm parks."""
+    board, inv, servo = engaged_faulty(0)
+    inv.kept = []
+    servo.slow = slow
+    set_position(board, OTHER)
+    t0 = board.time
+    inv.flagged("servo_lagging", 1.5)
+    if slow > 0.2:
+        assert inv.run_until(lambda: at(board, OTHER), 4.0) is not None
+        assert board.heartbeats[-1]["engaged"] == 1
+    else:
+        inv.flagged("servo_tracking", 1.0)
+        assert inv.run_until(lambda: board.heartbeats[-1]["engaged"] == 0, 1.0) is not None
+    named = {hb["lagging_joints"] for hb in board.heartbeats if hb["faults"] & FAULT["servo_lagging"]}
+    assert named == {1}, named
+    working = speed_units_per_s(WORKING_SPEED)
+    gap_max = math.ceil(working * (2 * MODEL.servo_response_lag + TICK)) + len(IDS) * working * TICK + 1
+    syncs = inv.log.syncs(t0)
+    shafts = inv.shafts_at([p.start for p in syncs])[:, 0]
+    gaps = [abs(sync_goal_speed(p.raw)[0][0] - s) for p, s in zip(syncs, shafts)]
+    print(f"\njoint 1's servo at {slow:.0%} of its speed: {'there' if slow > 0.2 else 'parked'} "
+          f"{board.time - t0:.2f} s after the target was set, the goal at most {max(gaps):.0f} units ahead of the "
+          f"shaft (allowed {gap_max:.0f})")
+    assert max(gaps) <= gap_max
 
 
 @pytest.mark.parametrize("drift", [30.0, 200.0])
