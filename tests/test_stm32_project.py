@@ -12,6 +12,7 @@ file system (which sources exist), the C preprocessor's includes, and the compil
 import os
 import re
 import shutil
+import struct
 import subprocess
 import time
 import xml.etree.ElementTree as ET
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+import st_startup
 from conftest import ROOT, require_arm_toolchain, skip_unless_ci
 from hal_stubs import weak_stubs
 from uavarm.build import firmware
@@ -486,29 +488,6 @@ def test_bus_clocks_give_the_model_baud_and_fast_mode_i2c():
     assert int(k["RCC.APB1Freq_Value"]) >= 4 * MHZ
 
 
-STARTUP_STANDIN = """
-    .syntax unified
-    .cpu cortex-m4
-    .thumb
-    .section .isr_vector,"a",%progbits
-    .global g_pfnVectors
-g_pfnVectors:
-    .word _estack
-    .word Reset_Handler
-    .text
-    .thumb_func
-    .global Default_Handler
-Default_Handler:
-    b .
-    .thumb_func
-    .global Reset_Handler
-Reset_Handler:
-    bl SystemInit
-    bl main
-    b .
-"""
-
-
 def standin_cube_tree(root: Path):
     """An STM32CubeF4-shaped tree whose headers are ci/hal_decls and whose sources are empty
     weak functions of the declared prototypes: enough to run the Makefile's real build
@@ -531,7 +510,7 @@ def standin_cube_tree(root: Path):
     for module in modules.replace("\\", " ").split():
         (hal / "Src" / f"stm32f4xx_{module}.c").touch(exist_ok=True)
     (dev / "Source" / "Templates" / "system_stm32f4xx.c").write_text("void SystemInit(void) { }\n")
-    (dev / "Source" / "Templates" / "gcc" / "startup_stm32f411xe.s").write_text(STARTUP_STANDIN)
+    (dev / "Source" / "Templates" / "gcc" / "startup_stm32f411xe.s").write_text(st_startup.text())
     for src in ("Core/Src/usbd_core.c", "Core/Src/usbd_ctlreq.c", "Core/Src/usbd_ioreq.c", "Class/CDC/Src/usbd_cdc.c"):
         (usb / src).touch()
     return root
@@ -550,12 +529,17 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     assert elf.exists() and binary.exists() and hexfile.exists()
     symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
     for name in ("main", "app_init", "app_poll", "board_port_start", "kin_ik_nearest", "Reset_Handler"):
-        assert re.search(rf" T {name}$", symbols, re.M), name
-    words = binary.read_bytes()[:8]
-    stack, reset = int.from_bytes(words[:4], "little"), int.from_bytes(words[4:], "little")
+        assert re.search(rf" [TW] {name}$", symbols, re.M), name
+    table = struct.unpack(f"<{st_startup.VECTORS}I", binary.read_bytes()[:4 * st_startup.VECTORS])
+    stack, reset = table[:2]
     assert stack == 0x2000_0000 + 128 * 1024                 # _estack: top of the 128 KB SRAM
-    reset_sym = int(re.search(r"^([0-9a-f]+) T Reset_Handler$", symbols, re.M).group(1), 16)
-    assert reset == reset_sym | 1 and 0x0800_0000 <= reset_sym < 0x0808_0000   # thumb, in flash
+    address = lambda name: int(re.search(rf"^([0-9a-f]+) [TtWw] {name}$", symbols, re.M).group(1), 16)
+    assert reset == address("Reset_Handler") | 1 and 0x0800_0000 <= reset < 0x0808_0000   # thumb, in flash
+    # ST's construct as linked: the entries of the handlers the firmware leaves to the start-up
+    # file hold Default_Handler | 1, while Default_Handler's own address is even
+    default = address("Default_Handler")
+    unused = [n for n, word in enumerate(table) if word & ~1 == default]
+    assert default % 2 == 0 and len(unused) == 54 and {table[n] for n in unused} == {default | 1}
     first = hexfile.read_text().splitlines()[0]
     assert first == ":020000040800F2"                         # Intel HEX: upper address 0x0800
     print(subprocess.run(["arm-none-eabi-size", str(elf)], capture_output=True, text=True).stdout)

@@ -64,10 +64,19 @@ static void unused_interrupt(void)
     board_fault();
 }
 
+/* A vector's address without the Thumb bit. ST's start-up file makes each unused entry a
+ * .thumb_set alias of Default_Handler, so the table holds Default_Handler | 1, while
+ * Default_Handler itself is a plain label whose address C sees even. */
+static uintptr_t code_address(board_vector_t vector)
+{
+    return (uintptr_t)vector & ~(uintptr_t)1u;
+}
+
 static void vectors_to_ram(void)
 {
+    const uintptr_t unused = code_address(Default_Handler);
     for (size_t i = 0; i < BOARD_VECTORS; ++i) {
-        board_ram_vectors[i] = g_pfnVectors[i] == Default_Handler ? unused_interrupt : g_pfnVectors[i];
+        board_ram_vectors[i] = code_address(g_pfnVectors[i]) == unused ? unused_interrupt : g_pfnVectors[i];
     }
     SCB->VTOR = (uint32_t)(uintptr_t)board_ram_vectors;
     __DSB();
