@@ -16,6 +16,7 @@ import pytest
 
 import st_startup
 from conftest import ROOT, require_arm_toolchain
+from test_stm32_project import c_defines
 from hal_stubs import weak_stubs
 from uavarm import m4
 from uavarm.build import cbuild, firmware, target
@@ -30,8 +31,7 @@ SERVO_PWR = (0, 8)                       # PA8
 LSI_HZ = 32_000                          # nominal; 17-47 kHz
 
 
-@pytest.fixture(scope="module")
-def built():
+def build_guard(*defines):
     lists = firmware.source_lists()
     sources = [FW / "Board" / "Src" / "board_guard.c", FW / "Board" / "Src" / "board_port.c",
                CSRC / "fake_hal.c", CSRC / "fake_guard.c"] + [FW / p for p in lists["BOARD_LOGIC_SOURCES"]]
@@ -39,13 +39,19 @@ def built():
     headers = [FW / "App" / "Inc" / "port.h", FW / "Board" / "Inc" / "board_port.h",
                FW / "Board" / "Inc" / "board_guard.h", CSRC / "fake_hal.h", CSRC / "fake_guard.h"]
     return cbuild.load("board_guard", sources, headers, include_dirs=includes,
-                       extra_flags=["-pthread", "-DBOARD_HALT=fake_halt"])
+                       extra_flags=["-pthread", "-DBOARD_HALT=fake_halt", *defines])
+
+
+@pytest.fixture(scope="module")
+def built():
+    return build_guard()
 
 
 @pytest.fixture
 def guard(built):
     ffi, lib = built
     lib.fake_reset()
+    lib.fake_guard_reset()
     port = lib.board_port_start()
     # as the firmware's: its own handlers (reset, the five faults, SVC, DebugMon, PendSV, SysTick,
     # TIM3, USART1, OTG_FS), the reserved entries 0, every other interrupt Default_Handler
@@ -81,6 +87,35 @@ def test_the_watchdog_runs_250_ms_and_is_fed_by_the_reload_key(guard):
     lib.fake_guard_set(b"KR", 0)
     lib.board_watchdog_feed()
     assert lib.fake_guard_get(b"KR") == 0xAAAA
+
+
+@pytest.mark.parametrize("debug", [False, True], ids=["release", "debug"])
+def test_debug_builds_stop_the_watchdog_while_a_debugger_halts_the_core(debug):
+    """DBGMCU_APB1_FZ.DBG_IWDG_STOP (RM0383, bit 12) set by the start in a build with DEBUG
+    defined (CubeIDE's Debug configurations), left clear otherwise (the flight build)."""
+    ffi, lib = build_guard(*(["-DDEBUG"] if debug else []))
+    lib.fake_reset()
+    lib.fake_guard_reset()
+    lib.board_port_start()
+    start(lib, PINRST)
+    assert bool(lib.fake_guard_get(b"APB1FZ") & 1 << 12) == debug
+    assert lib.fake_guard_get(b"APB1FZ") & ~(1 << 12) == 0
+
+
+def test_a_stop_cuts_the_supply_lights_both_leds_and_leaves_the_watchdog_running(guard):
+    """board_stop, Error_Handler's, on a board whose start-up stopped before its pins and its
+    watchdog were set up (the external clock at boot): PA8 an output driven low, PA5 and PA6 (LD2, LED1) outputs driven high, interrupts off, the watchdog
+    started with its 250 ms and loaded, halted."""
+    lib = guard[1]
+    lib.fake_reset()
+    lib.fake_guard_reset()
+    halts = lib.fake_halts
+    lib.board_stop()
+    supply, leds = 1 << 8, 1 << 5 | 1 << 6
+    assert lib.fake.outputs[0] == supply | leds and lib.fake.odr[0] == leds
+    assert lib.fake_irq_disabled and lib.fake_halts == halts + 1
+    timeout = 4 * 2 ** lib.fake_guard_get(b"PR") * (lib.fake_guard_get(b"RLR") + 1) / LSI_HZ
+    assert timeout == pytest.approx(0.250) and lib.fake_guard_get(b"KR") == 0xAAAA
 
 
 def test_every_unused_interrupt_cuts_the_servo_supply_and_is_recorded_over_the_reset(guard):
@@ -173,9 +208,9 @@ def test_with_st_startup_every_unused_vector_is_replaced_and_cuts_the_supply(m4_
     unused = [n for n in range(1, st_startup.VECTORS) if table[n] & ~1 == default]
     assert {names[n] for n in unused} == {name for name in names[16:] if name} - USED_IRQS
     assert len(unused) == 54 and {table[n] for n in unused} == {default | 1}
-    out = image.call("guard_start", [m4.U32(PINRST), m4.Arr("uint32", 3 + st_startup.VECTORS)], ret="void").arrays[1]
-    ram = out[3:]
-    assert out[:3] == [CAUSE["pin"], 0, symbols["board_ram_vectors"]]
+    out = image.call("guard_start", [m4.U32(PINRST), m4.Arr("uint32", 4 + st_startup.VECTORS)], ret="void").arrays[1]
+    ram = out[4:]
+    assert out[:4] == [CAUSE["pin"], 0, symbols["board_ram_vectors"], 0]
     assert [ram[n] for n in unused] == [symbols["unused_interrupt"] | 1] * len(unused)
     assert [ram[n] for n in range(st_startup.VECTORS) if n not in unused] == \
         [table[n] for n in range(st_startup.VECTORS) if n not in unused]
@@ -183,3 +218,57 @@ def test_with_st_startup_every_unused_vector_is_replaced_and_cuts_the_supply(m4_
                      ret="void").arrays[2]
     for k, n in enumerate(unused):
         assert out[3 * k:3 * k + 3] == [0, 1, n], f"{names[n]}: supply, halts, fault reported"
+
+
+class WatchdogRegisters:
+    """The IWDG as RM0383 17.3-17.4 describes it, on the emulated bus: 0x5555 in KR opens PR
+    and RLR to writing, any other key closes them; a write to an open PR or RLR sets PVU or
+    RVU in SR until the value has crossed into the LSI's domain, here for `busy_reads` reads
+    of SR (None: it never crosses). `log` holds every write and SR read, in order."""
+    NAMES = {0: "KR", 4: "PR", 8: "RLR"}
+
+    def __init__(self, base: int, busy_reads: int | None):
+        self.base, self.busy_reads = base, busy_reads
+        self.log, self.writable, self.pending, self.left = [], False, 0, 0
+
+    def setup(self, uc):
+        from unicorn import UC_HOOK_MEM_READ, UC_HOOK_MEM_WRITE
+        uc.hook_add(UC_HOOK_MEM_WRITE, self._write, begin=self.base, end=self.base + 11)
+        uc.hook_add(UC_HOOK_MEM_READ, self._read_sr, begin=self.base + 12, end=self.base + 15)
+
+    def _write(self, uc, access, address, size, value, data):
+        name = self.NAMES[address - self.base]
+        self.log.append((name, value))
+        if name == "KR":
+            self.writable = value == 0x5555
+        elif self.writable:
+            self.pending |= 1 if name == "PR" else 2      # PVU, RVU
+            self.left = self.busy_reads
+
+    def _read_sr(self, uc, access, address, size, value, data):
+        if self.left is None or self.left > 0:
+            self.left = None if self.left is None else self.left - 1
+        else:
+            self.pending = 0
+        uc.mem_write(address, struct.pack("<I", self.pending))   # what the load then reads
+        self.log.append(("SR", self.pending))
+
+
+@pytest.mark.parametrize("m4_guard", [False], ids=["st_startup"], indirect=True)
+def test_the_watchdog_is_loaded_only_once_its_settings_are_taken_and_the_wait_is_bounded(m4_guard):
+    """As HAL_IWDG_Init: start, unlock, prescaler and reload (250 ms at LSI / 32), then the
+    status read until PVU and RVU are clear, and only then the reload key. Settings never
+    taken: BOARD_WATCHDOG_UPDATE_POLLS reads, no reload key, Error_Handler; the run returns."""
+    image = m4_guard
+    polls = c_defines(FW / "Board" / "Inc" / "board_config.h", "BOARD_WATCHDOG_UPDATE_POLLS")["BOARD_WATCHDOG_UPDATE_POLLS"]
+    iwdg = WatchdogRegisters(image.symbols["ci_iwdg"], busy_reads=3)
+    out = image.call("guard_start", [m4.U32(PINRST), m4.Arr("uint32", 4 + st_startup.VECTORS)], ret="void",
+                     setup=iwdg.setup).arrays[1]
+    settings = [("KR", 0xCCCC), ("KR", 0x5555), ("PR", 3), ("RLR", 249)]
+    assert iwdg.log == settings + [("SR", 3)] * 3 + [("SR", 0), ("KR", 0xAAAA)] and out[3] == 0
+    assert 4 * 2 ** 3 * 250 / LSI_HZ == pytest.approx(0.250)
+    iwdg = WatchdogRegisters(image.symbols["ci_iwdg"], busy_reads=None)
+    r = image.call("guard_start", [m4.U32(PINRST), m4.Arr("uint32", 4 + st_startup.VECTORS)], ret="void",
+                   setup=iwdg.setup, max_insns=20 * polls)     # a wait without its bound fails here
+    assert iwdg.log == settings + [("SR", 3)] * polls and r.arrays[1][3] == 1
+    print(f"a poll of the watchdog's status: {r.cycles_by_function['board_guard_start'] / polls:.2f} est. cycles")

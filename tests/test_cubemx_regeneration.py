@@ -193,9 +193,9 @@ HARNESS_SOURCES = ["Core/Src/main.c", "Core/Src/stm32f4xx_hal_msp.c", "Core/Src/
                    "USB_DEVICE/Target/usbd_conf.c", "Board/Src/board_clock.c"]
 
 
-def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0):
-    """Builds the CubeMX-owned start-up of fw (with gen's model_params.h) for the host and
-    runs main() to its main loop; returns (record, the CDC buffers' sizes, SystemClock_Config's record)."""
+def build_startup(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0):
+    """The CubeMX-owned start-up of fw (with gen's model_params.h) built for the host over the
+    HAL double: (ffi, lib, the shared library's path)."""
     stubs = tmp / "hal_stubs.c"
     stubs.write_text(weak_stubs(FW / "ci" / "hal_decls"))
     includes = [FW / "ci" / "hal_decls"] + [fw / d for d in firmware.source_lists()["FIRMWARE_INCLUDES"]
@@ -206,10 +206,16 @@ def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0):
     sources = [fw / s for s in HARNESS_SOURCES] + [CSRC / "fake_cube.c", stubs]
     ffi, lib = cbuild.load("cube_startup", sources, [CSRC / "fake_cube.h"], include_dirs=includes,
                            extra_flags=flags)
-    so = cbuild.build_shared("cube_startup", sources, includes, flags)
+    return ffi, lib, cbuild.build_shared("cube_startup", sources, includes, flags)
+
+
+def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0):
+    """Builds the CubeMX-owned start-up of fw (with gen's model_params.h) for the host and
+    runs main() to its main loop; returns (record, the CDC buffers' sizes, SystemClock_Config's record)."""
+    ffi, lib, so = build_startup(fw, gen, tmp, hse_hz, bypass)
     cube = ffi.addressof(lib, "cube")
     fields = [name for name, _ in ffi.typeof("fake_cube_t").fields]
-    assert lib.fake_cube_boot() == 1 and not cube.error_handler
+    assert lib.fake_cube_boot(0) == 1 and not cube.error_handler
     record = {name: getattr(cube, name) for name in fields}
     record["nvic_priority"] = list(cube.nvic_priority)
     record["nvic_enabled"] = list(cube.nvic_enabled)
@@ -279,6 +285,19 @@ def test_committed_start_up_gives_the_model_and_board_numbers(tmp_path, model):
     # CubeMX's SystemClock_Config (from the .ioc, not called) sets the same clock as the
     # board's default: the .ioc's clock tree is the default board's
     assert cubemx_clock == {name: record[name] for name in cubemx_clock}
+
+
+def test_a_clock_that_does_not_start_stops_the_board_before_any_peripheral(tmp_path):
+    """The HSE never ready (HAL_RCC_OscConfig's timeout: a NUCLEO-F411RE built for a crystal,
+    a crystal that does not oscillate): main() goes from the board's clock to Error_Handler,
+    which stops in board_stop (supply off, LEDs on, watchdog running: tests/test_board_guard.py),
+    before any peripheral, the USB stack, the board's guard or the clock security system."""
+    ffi, lib, _ = build_startup(FW, ROOT / "generated", tmp_path)
+    assert lib.fake_cube_boot(1) == 0
+    cube = ffi.addressof(lib, "cube")
+    assert cube.error_handler and cube.osc_configs == 1 and cube.clock_configs == 0 and cube.css_enabled == 0
+    assert (cube.halfduplex_inits, cube.i2c_inits, cube.tim2_prescaler, cube.usbd_started, cube.guard_started) == \
+        (0, 0, 0, 0, 0)
 
 
 @pytest.fixture(scope="module")

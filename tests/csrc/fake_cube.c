@@ -21,9 +21,10 @@ fake_cube_t cube;
 USBD_ClassTypeDef USBD_CDC;
 static jmp_buf boot;
 
-int fake_cube_boot(void)
+int fake_cube_boot(int hse_fails)
 {
     memset(&cube, 0, sizeof cube);
+    cube.hse_fails = hse_fails;
     if (setjmp(boot) == 0) {
         (void)firmware_main();
     }
@@ -73,8 +74,8 @@ void board_watchdog_feed(void) { }
 void board_fault(void) { }
 bool app_healthy(const app_t *app) { (void)app; return true; }
 
-/* Error_Handler() ends in __disable_irq() and an endless loop: leave it here. */
-void __disable_irq(void)
+/* Error_Handler() stops in board_stop() (tests/test_board_guard.py checks what it does): leave it here. */
+void board_stop(void)
 {
     cube.error_handler = 1;
     longjmp(boot, 2);
@@ -92,6 +93,7 @@ HAL_StatusTypeDef HAL_Init(void)
 HAL_StatusTypeDef HAL_RCC_OscConfig(RCC_OscInitTypeDef *o)
 {
     cube.osc_configs++;
+    if (cube.hse_fails) return HAL_TIMEOUT;      /* HSERDY never set within HSE_STARTUP_TIMEOUT */
     cube.hse_state = o->HSEState;
     cube.pll_state = o->PLL.PLLState;
     cube.pll_source = o->PLL.PLLSource;

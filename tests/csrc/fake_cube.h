@@ -12,6 +12,7 @@
 typedef struct {
     int reached_main_loop;           /* main() got to its first app_poll() */
     int error_handler;               /* Error_Handler() was called */
+    int hse_fails;                   /* HAL_RCC_OscConfig answers HAL_TIMEOUT: the HSE does not start */
     uint32_t system_clock_config;    /* calls of CubeMX's SystemClock_Config */
     /* what HAL_RCC_OscConfig and HAL_RCC_ClockConfig received (HAL constant values) */
     uint32_t osc_configs, hse_state, pll_state, pll_source, pll_m, pll_n, pll_p, pll_q;
@@ -39,8 +40,9 @@ typedef struct {
 
 extern fake_cube_t cube;
 
-/* Runs the firmware's main() until its main loop; returns cube.reached_main_loop. */
-int fake_cube_boot(void);
+/* Runs the firmware's main() until its main loop or Error_Handler (hse_fails: the external
+ * clock does not start); returns cube.reached_main_loop. */
+int fake_cube_boot(int hse_fails);
 /* Calls CubeMX's SystemClock_Config alone (main() leaves it out). */
 void fake_cube_system_clock_config(void);
 /* The host's CDC SET_CONTROL_LINE_STATE request with this wValue (bit 0 DTR), as the USB

@@ -153,6 +153,9 @@ HAL_StatusTypeDef HAL_UART_AbortTransmit(UART_HandleTypeDef *huart)
 /* ---- GPIO */
 void HAL_GPIO_Init(GPIO_TypeDef *GPIOx, const GPIO_InitTypeDef *GPIO_Init)
 {
+    const bool output = GPIO_Init->Mode == GPIO_MODE_OUTPUT_PP || GPIO_Init->Mode == GPIO_MODE_OUTPUT_OD;
+    uint16_t *outputs = &fake.outputs[port_index(GPIOx)];
+    *outputs = (uint16_t)(output ? *outputs | GPIO_Init->Pin : *outputs & ~GPIO_Init->Pin);
     if (GPIOx == IMU_SCL_GPIO_Port && (GPIO_Init->Pin & IMU_SCL_Pin)) {
         gpio_mode_on_i2c_pins = GPIO_Init->Mode == GPIO_MODE_OUTPUT_OD;
     }

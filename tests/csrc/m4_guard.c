@@ -22,6 +22,7 @@ PCD_HandleTypeDef hpcd_USB_OTG_FS;
 
 static uint32_t servo_supply;    /* PA8's output level */
 static uint32_t halts;
+static uint32_t error_handlers;
 
 /* The start-up file's Reset_Handler names these; the emulation never resets. */
 void SystemInit(void) { }
@@ -29,6 +30,7 @@ int main(void) { return 0; }
 
 void __DSB(void) { }
 void guard_halt(void) { halts++; }   /* BOARD_HALT: back to the harness instead of waiting for the watchdog */
+void Error_Handler(void) { error_handlers++; }
 
 void HAL_GPIO_WritePin(GPIO_TypeDef *GPIOx, uint16_t GPIO_Pin, GPIO_PinState PinState)
 {
@@ -36,7 +38,7 @@ void HAL_GPIO_WritePin(GPIO_TypeDef *GPIOx, uint16_t GPIO_Pin, GPIO_PinState Pin
 }
 
 /* board_guard_start after a reset with these RCC_CSR flags.
- * out: cause, fault, VTOR, then the table in RAM (VECTORS words). */
+ * out: cause, fault, VTOR, Error_Handler calls, then the table in RAM (VECTORS words). */
 void guard_start(uint32_t csr, uint32_t *out)
 {
     ci_rcc.CSR = csr;
@@ -44,7 +46,8 @@ void guard_start(uint32_t csr, uint32_t *out)
     out[0] = reset.cause;
     out[1] = reset.fault;
     out[2] = ci_scb.VTOR;
-    for (uint32_t i = 0; i < VECTORS; i++) out[3u + i] = (uint32_t)(uintptr_t)board_ram_vectors[i];
+    out[3] = error_handlers;
+    for (uint32_t i = 0; i < VECTORS; i++) out[4u + i] = (uint32_t)(uintptr_t)board_ram_vectors[i];
 }
 
 /* After a pin reset's start, for each exception number: the servo supply on, the core takes

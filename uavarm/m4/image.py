@@ -101,10 +101,10 @@ class Image:
                 return (data + bytes(memsz - len(data)))[addr - start:addr - start + size]
         raise ValueError(f"{addr:#x}+{size} is not in one loaded segment")
 
-    def call(self, func: str, args=(), ret: str = "float", max_insns: int = 20_000_000):
+    def call(self, func: str, args=(), ret: str = "float", max_insns: int = 20_000_000, setup=None):
         """Run func(*args) once; see emulate.call."""
         from . import emulate
-        return emulate.call(self, func, args, ret, max_insns)
+        return emulate.call(self, func, args, ret, max_insns, setup)
 
 
 def _load_segments(data: bytes) -> list[tuple[int, bytes, int]]:

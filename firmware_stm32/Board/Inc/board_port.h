@@ -45,6 +45,9 @@ void board_link_line_state(bool dtr);
 
 /* Servo supply off at once, without the HAL state machine: for Error_Handler and faults. */
 void board_servo_power_off(void);
+/* Servo supply off and both LEDs on, the three pins made outputs first (board_stop: start-up
+ * may stop before MX_GPIO_Init has run). */
+void board_stop_outputs(void);
 /* cffi:end */
 
 #ifdef __cplusplus

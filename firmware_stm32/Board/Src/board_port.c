@@ -181,6 +181,23 @@ static void led(void *ctx, uint8_t index, bool on)
     else if (index == 1u) HAL_GPIO_WritePin(LED1_GPIO_Port, LED1_Pin, level);
 }
 
+void board_stop_outputs(void)
+{
+    GPIO_InitTypeDef pin = {0};
+    board_servo_power_off();             /* the levels first, then the pins outputs, as MX_GPIO_Init */
+    led(NULL, 0u, true);
+    led(NULL, 1u, true);
+    __HAL_RCC_GPIOA_CLK_ENABLE();        /* PA8, PA5, PA6 (main.h) */
+    pin.Mode = GPIO_MODE_OUTPUT_PP;
+    pin.Speed = GPIO_SPEED_FREQ_LOW;
+    pin.Pin = SERVO_PWR_Pin;
+    pin.Pull = GPIO_PULLDOWN;
+    HAL_GPIO_Init(SERVO_PWR_GPIO_Port, &pin);
+    pin.Pin = LED0_Pin | LED1_Pin;
+    pin.Pull = GPIO_NOPULL;
+    HAL_GPIO_Init(LED0_GPIO_Port, &pin);
+}
+
 /* ------------------------------------------------------------------ IMU */
 
 /* A slave left mid-byte (e.g. the MCU reset during a read) holds SDA low and the I2C

@@ -406,9 +406,10 @@ void HAL_TIM_PeriodElapsedCallback(TIM_HandleTypeDef *htim)
 void Error_Handler(void)
 {
   /* USER CODE BEGIN Error_Handler_Debug */
-  /* Servo supply off, then stop: the drone's computer sees the heartbeat stop. */
-  board_servo_power_off();
-  __disable_irq();
+  /* Servo supply off, both LEDs on, stop with the watchdog running (started here if start-up
+   * had not started it yet, e.g. the external clock failed): it resets the chip, which
+   * tries again. The drone's computer sees the heartbeat stop. */
+  board_stop();
   while (1)
   {
   }
