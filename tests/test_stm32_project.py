@@ -154,27 +154,44 @@ CIDE_VALUES = {
 
 
 def cproject_configurations():
-    """{name: {option superClass suffix: option element}} of each build configuration."""
+    """{name: {option superClass suffix: option element, and "builder": the builder element}}
+    of each build configuration."""
     configs = {}
     for conf in ET.parse(FW / ".cproject").getroot().iter("configuration"):
         if conf.get("artifactExtension") != "elf":
             continue
         configs[conf.get("name")] = {opt.get("superClass").removeprefix(CIDE + "."): opt
                                      for opt in conf.iter("option")}
+        configs[conf.get("name")]["builder"] = conf.find(".//builder")
     return configs
 
 
+# The build configurations: CubeIDE's Debug and Release for a board with its own crystal, and
+# their copies for a NUCLEO-F411RE, whose OSC_IN the ST-LINK drives (HSE bypass)
+CONFIGURATIONS = {"Debug": "Debug", "Release": "Release", "Nucleo_Debug": "Debug", "Nucleo_Release": "Release"}
+
+
+def cproject_symbols(configuration: str) -> list[str]:
+    """The C compiler's defined symbols (-D) of a build configuration."""
+    opts = cproject_configurations()[configuration]
+    return [v.get("value") for v in opts["tool.c.compiler.option.definedsymbols"].iter("listOptionValue")]
+
+
 def test_cproject_has_debug_and_release_as_cubeide_writes_them():
-    """Both configurations CubeIDE creates, each with the option.defaults record CubeMX
-    compares against when it regenerates, the MCU, the linker script CubeIDE names, and
-    option values that occur in CubeIDE-written projects; Release optimises (-Os) and
-    leaves DEBUG undefined."""
+    """The configurations CubeIDE creates, Debug and Release, and their copies for the
+    NUCLEO-F411RE (Manage Configurations, New, settings copied: the option.defaults record
+    CubeMX compares against when it regenerates keeps its source's name), each with the MCU,
+    the linker script CubeIDE names, its own build folder, and option values that occur in
+    CubeIDE-written projects; Release optimises (-Os) and leaves DEBUG undefined (DEBUG also
+    freezes the watchdog for the debugger: test_board_guard.py); the Nucleo copies add
+    BOARD_HSE_BYPASS=1 and nothing else."""
     configs = cproject_configurations()
-    assert set(configs) == {"Debug", "Release"}
+    assert set(configs) == set(CONFIGURATIONS)
     for name, opts in configs.items():
+        kind = CONFIGURATIONS[name]
         defaults = [f.strip() for f in opts["option.defaults"].get("value").split("||")]
         assert defaults[0].startswith("com.st.stm32cube.ide.common.services.build.inputs.revA.")
-        assert defaults[1] == name and defaults[5] == "STM32F411RETx"
+        assert defaults[1] == kind and defaults[5] == "STM32F411RETx"
         assert "${workspace_loc:/${ProjName}/STM32F411RETX_FLASH.ld}" in defaults
         assert opts["option.target_mcu"].get("value") == "STM32F411RETx"
         script = opts["tool.c.linker.option.script"].get("value")
@@ -182,11 +199,13 @@ def test_cproject_has_debug_and_release_as_cubeide_writes_them():
         assert (FW / "STM32F411RETX_FLASH.ld").is_file()
         for option, allowed in CIDE_VALUES.items():
             assert opts[option].get("value") in allowed, (name, option)
-        symbols = [v.get("value") for v in opts["tool.c.compiler.option.definedsymbols"].iter("listOptionValue")]
-        assert {"USE_HAL_DRIVER", "STM32F411xE"} <= set(symbols)
-        assert ("DEBUG" in symbols) == (name == "Debug")
-    release = configs["Release"]["tool.c.compiler.option.optimization.level"].get("value")
-    assert release.endswith(".value.os")
+        symbols = cproject_symbols(name)
+        board = [s for s in symbols if s.startswith("BOARD_") or s.startswith("HSE_")]
+        assert set(symbols) - set(board) == {"USE_HAL_DRIVER", "STM32F411xE"} | ({"DEBUG"} if kind == "Debug" else set())
+        assert board == (["BOARD_HSE_BYPASS=1"] if name.startswith("Nucleo_") else [])
+        optimisation = opts["tool.c.compiler.option.optimization.level"].get("value")
+        assert optimisation.endswith(".value.os" if kind == "Release" else ".value.og")
+        assert opts["builder"].get("buildPath") == "${workspace_loc:/manipulator}/" + name
 
 
 def test_makefile_and_cubeide_link_with_the_same_script():
@@ -543,6 +562,19 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     first = hexfile.read_text().splitlines()[0]
     assert first == ":020000040800F2"                         # Intel HEX: upper address 0x0800
     print(subprocess.run(["arm-none-eabi-size", str(elf)], capture_output=True, text=True).stdout)
+
+
+@pytest.mark.parametrize("configuration", ["Nucleo_Debug", "Nucleo_Release"])
+def test_the_nucleo_configurations_build_for_the_target(configuration, tmp_path):
+    """The command-line build with exactly the CubeIDE configuration's defined symbols
+    (BOARD_HSE_BYPASS=1, and DEBUG in Nucleo_Debug) compiles with warnings as errors and links.
+    The clock those symbols program: test_cubemx_regeneration.py."""
+    require_arm_toolchain()
+    cube = standin_cube_tree(tmp_path / "cube")
+    defs = " ".join(f"-D{symbol}" for symbol in cproject_symbols(configuration))
+    proc = make(f"STM32CUBE_F4={cube}", f"BUILD={tmp_path / 'build'}", f"DEFS={defs}", check=False)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "-DBOARD_HSE_BYPASS=1" in proc.stdout and (tmp_path / "build" / "manipulator.elf").exists()
 
 
 # ------------------------------------------------------------------ builds that never mix old and new

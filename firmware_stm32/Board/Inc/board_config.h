@@ -14,7 +14,8 @@
 #endif
 
 /* 0: a crystal between OSC_IN and OSC_OUT (custom board). 1: a clock signal on OSC_IN
- * (NUCLEO-F411RE's ST-LINK MCO, the HSE "bypass" mode of RM0383 6.2.1). */
+ * (NUCLEO-F411RE's ST-LINK MCO, the HSE "bypass" mode of RM0383 6.2.1): CubeIDE's
+ * Nucleo_Debug and Nucleo_Release configurations define it. */
 #ifndef BOARD_HSE_BYPASS
 #define BOARD_HSE_BYPASS 0
 #endif
