@@ -58,12 +58,6 @@ class Bus:
     def close(self) -> None:
         self.serial.close()
 
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
     @property
     def baud(self) -> int:
         return self.serial.baudrate

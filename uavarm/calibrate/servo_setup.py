@@ -12,6 +12,7 @@ Like the calibrations, the procedure takes `ask(text)` and `confirm(question)`, 
 run it against the simulated bus as a user at the bench does."""
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 from pathlib import Path
@@ -62,7 +63,7 @@ def setup(port: str, model: config.Model, ask, confirm, timeout: float = 0.1, ou
     """Sets up one servo per joint; returns how many were written to (not already set up)."""
     written = 0
     register = dxl.baud_register(model.servo_baud)
-    with dxl.Bus(port, FACTORY_BAUD, timeout) as bus:
+    with contextlib.closing(dxl.Bus(port, FACTORY_BAUD, timeout)) as bus:
         for joint, servo in enumerate(model.servos, 1):
             ask(f"Joint {joint} (id {servo.id}): connect its servo alone to the adapter (the 3-pin cable and "
                 f"12 V; the other servos unplugged), then press Enter")
