@@ -222,7 +222,7 @@ def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0, symbols=Non
     ffi, lib, so = build_startup(fw, gen, tmp, symbols or board_symbols(hse_hz, bypass))
     cube = ffi.addressof(lib, "cube")
     fields = [name for name, _ in ffi.typeof("fake_cube_t").fields]
-    assert lib.fake_cube_boot(0) == 1 and not cube.error_handler
+    assert lib.fake_cube_boot(0, 0) == 1 and not cube.error_handler
     record = {name: getattr(cube, name) for name in fields}
     record["nvic_priority"] = list(cube.nvic_priority)
     record["nvic_enabled"] = list(cube.nvic_enabled)
@@ -316,11 +316,22 @@ def test_a_clock_that_does_not_start_stops_the_board_before_any_peripheral(tmp_p
     which stops in board_stop (supply off, LEDs on, watchdog running: tests/test_board_guard.py),
     before any peripheral, the USB stack, the board's guard or the clock security system."""
     ffi, lib, _ = build_startup(FW, ROOT / "generated", tmp_path)
-    assert lib.fake_cube_boot(1) == 0
+    assert lib.fake_cube_boot(1, 0) == 0
     cube = ffi.addressof(lib, "cube")
     assert cube.error_handler and cube.osc_configs == 1 and cube.clock_configs == 0 and cube.css_enabled == 0
     assert (cube.halfduplex_inits, cube.i2c_inits, cube.tim2_prescaler, cube.usbd_started, cube.guard_started) == \
         (0, 0, 0, 0, 0)
+
+
+def test_cfg0_closed_runs_the_servo_set_up_bridge_instead_of_the_arm(tmp_path):
+    """With the bridge selected, main() starts the peripherals and the board's guard, then
+    the bridge, whose loop feeds the watchdog before each poll; the tick timer is never
+    started and the main loop never reached."""
+    ffi, lib, _ = build_startup(FW, ROOT / "generated", tmp_path)
+    assert lib.fake_cube_boot(0, 1) == 0
+    cube = ffi.addressof(lib, "cube")
+    assert (cube.guard_started, cube.bridge_started, cube.bridge_polled) == (1, 1, 1)
+    assert cube.usbd_started == 1 and cube.tim3_started_it == 0 and not cube.error_handler
 
 
 @pytest.fixture(scope="module")

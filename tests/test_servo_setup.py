@@ -9,6 +9,7 @@ import threading
 
 import pytest
 
+from sdk_capture import sdk_packet
 from uavarm.calibrate import dxl, servo_setup
 from uavarm.cli import main as cli_main
 from uavarm.sim.ax12_sim import AX12
@@ -18,47 +19,11 @@ pytestmark = pytest.mark.realtime   # a reply counts as missing after a wall-clo
 TIMEOUT = 1.0                       # s; the simulated bus answers at once
 
 
-class CapturePort:
-    """What DynamixelSDK's packet handler needs of a port, keeping what it sends."""
-    is_using = False
-    baudrate = 1_000_000
-    tx_time_per_byte = 0.01
-
-    def __init__(self):
-        self.sent = []
-
-    def clearPort(self):
-        pass
-
-    def writePort(self, packet):
-        self.sent.append(bytes(packet))
-        return len(packet)
-
-    def readPort(self, length):
-        return []
-
-    def getBytesAvailable(self):
-        return 0
-
-    def setPacketTimeout(self, packet_length):
-        pass
-
-    def setPacketTimeoutMillis(self, msec):
-        pass
-
-    def isPacketTimeout(self):
-        return True
-
-
 def test_the_packets_are_the_dynamixel_sdks():
-    from dynamixel_sdk import PacketHandler
-    sdk, port = PacketHandler(1.0), CapturePort()
-    for send in (lambda: sdk.ping(port, 1), lambda: sdk.readTx(port, 3, dxl.MODEL_NUMBER, 5),
-                 lambda: sdk.write1ByteTxOnly(port, 1, dxl.ID, 2), lambda: sdk.write1ByteTxOnly(port, 2, dxl.BAUD_RATE, 9)):
-        send()
-        port.is_using = False        # (the SDK frees the port once it has read an answer)
-    assert port.sent == [dxl.instruction(1, dxl.PING), dxl.instruction(3, dxl.READ, bytes([0, 5])),
-                         dxl.instruction(1, dxl.WRITE, bytes([3, 2])), dxl.instruction(2, dxl.WRITE, bytes([4, 9]))]
+    assert sdk_packet("ping", 1) == dxl.instruction(1, dxl.PING)
+    assert sdk_packet("readTx", 3, dxl.MODEL_NUMBER, 5) == dxl.instruction(3, dxl.READ, bytes([0, 5]))
+    assert sdk_packet("write1ByteTxOnly", 1, dxl.ID, 2) == dxl.instruction(1, dxl.WRITE, bytes([3, 2]))
+    assert sdk_packet("write1ByteTxOnly", 2, dxl.BAUD_RATE, 9) == dxl.instruction(2, dxl.WRITE, bytes([4, 9]))
 
 
 @pytest.fixture

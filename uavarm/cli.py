@@ -1,6 +1,6 @@
 """The `uavarm` command: codegen, demo, link (talk to a board), sitl (a simulated board),
 sim (the closed-loop simulator's table and plots), workspace (the reachable-region plot),
-servos (new servos' ids and baud through a Dynamixel adapter)."""
+servos (new servos' ids and baud, through the board or a Dynamixel adapter)."""
 from __future__ import annotations
 
 import argparse
@@ -233,12 +233,13 @@ def parser() -> argparse.ArgumentParser:
     st.add_argument("--servo-bus", action="store_true",
                     help="instead of the board: a simulated servo bus with one AX-12A as it ships (id 1 at "
                          "1 Mbit/s), as through a Dynamixel adapter, for `uavarm servos setup`")
-    sv = sub.add_parser("servos", help="set up new AX-12A servos through a Dynamixel adapter")
+    sv = sub.add_parser("servos", help="set up new AX-12A servos through the board (CFG0 closed at reset) or a "
+                                       "Dynamixel adapter")
     sv.add_argument("action", choices=["setup"],
                     help="setup: give each joint's servo, connected alone, the model file's id and the bus's "
                          "baud rate (each write confirmed, then read back)")
-    sv.add_argument("port", help="serial device of the adapter (U2D2, USB2Dynamixel) or the path "
-                                 "`uavarm sitl --servo-bus` prints")
+    sv.add_argument("port", help="serial device: the board with CFG0 closed, an adapter (U2D2, USB2Dynamixel), "
+                                 "or the path `uavarm sitl --servo-bus` prints")
     sv.add_argument("--model", default=None, help="model file with the ids and baud (default: model/manipulator.toml)")
     sv.add_argument("--timeout", type=POSITIVE, default=0.1,
                     help="seconds to wait for a servo's answer (default: %(default)s)")

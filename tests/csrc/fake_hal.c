@@ -143,6 +143,25 @@ HAL_StatusTypeDef HAL_UART_Receive_IT(UART_HandleTypeDef *huart, uint8_t *pData,
     return HAL_OK;
 }
 
+HAL_StatusTypeDef HAL_UART_AbortReceive(UART_HandleTypeDef *huart)
+{
+    huart->RxState = HAL_UART_STATE_READY;
+    rx_target = NULL;
+    fake.receive_aborts++;
+    return HAL_OK;
+}
+
+/* On a handle already set up (UM1725): the new Init values taken, both states READY. */
+HAL_StatusTypeDef HAL_HalfDuplex_Init(UART_HandleTypeDef *huart)
+{
+    fake.halfduplex_inits++;
+    fake.baud_set = huart->Init.BaudRate;
+    fake.receive_armed_at_init = huart->RxState == HAL_UART_STATE_BUSY_RX;
+    huart->gState = HAL_UART_STATE_READY;
+    huart->RxState = HAL_UART_STATE_READY;
+    return HAL_OK;
+}
+
 HAL_StatusTypeDef HAL_UART_AbortTransmit(UART_HandleTypeDef *huart)
 {
     huart->gState = HAL_UART_STATE_READY;

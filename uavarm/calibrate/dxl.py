@@ -18,6 +18,7 @@ MODEL_NUMBER, ID, BAUD_RATE = 0, 3, 4          # AX-12A control table addresses 
 AX12A_MODEL_NUMBER = 12
 FACTORY_ID, FACTORY_BAUD = 1, 1_000_000         # an AX-12A as it ships
 EEPROM_WRITE_S = 0.05                           # a pause after an EEPROM write before the next instruction
+POWER_UP_S = 0.5                                # the board's bridge powers the servos when the port opens
 
 
 def baud_register(baud: float) -> int:

@@ -1,6 +1,7 @@
 """`uavarm servos setup PORT`: gives each joint's AX-12A the model file's id and the bus's baud
-rate, one servo at a time, through a Dynamixel adapter on PORT (ROBOTIS U2D2 or USB2Dynamixel
-with its power hub, or the simulated bus `uavarm sitl --servo-bus` offers).
+rate, one servo at a time, through a Dynamixel adapter on PORT: the board itself with CFG0
+closed at reset (its servo set-up bridge, docs/board-project.md), a ROBOTIS U2D2 or
+USB2Dynamixel with its power hub, or the simulated bus `uavarm sitl --servo-bus` offers.
 
 For each joint: connect its servo alone and press Enter. The servo is looked for as it ships
 (id 1 at 1 Mbit/s), with only its id set, and set up; its model number must be the AX-12A's.
@@ -64,6 +65,7 @@ def setup(port: str, model: config.Model, ask, confirm, timeout: float = 0.1, ou
     written = 0
     register = dxl.baud_register(model.servo_baud)
     with contextlib.closing(dxl.Bus(port, FACTORY_BAUD, timeout)) as bus:
+        time.sleep(dxl.POWER_UP_S)
         for joint, servo in enumerate(model.servos, 1):
             ask(f"Joint {joint} (id {servo.id}): connect its servo alone to the adapter (the 3-pin cable and "
                 f"12 V; the other servos unplugged), then press Enter")

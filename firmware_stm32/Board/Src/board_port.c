@@ -6,6 +6,7 @@
 #include "byte_ring.h"
 #include "cdc_link.h"
 #include "main.h"
+#include "servo_bridge.h"
 #include "usbd_cdc_if.h"
 
 /* The HAL's idea of the crystal must be the board's. */
@@ -35,6 +36,8 @@ typedef struct {
 
 static board_t board;
 static port_t port;
+static servo_bridge_t bridge;
+static volatile uint32_t host_baud;   /* the host's line coding, from the USB interrupt; 0 none yet */
 
 /* ------------------------------------------------------------------ time */
 
@@ -171,6 +174,11 @@ void board_link_line_state(bool dtr)
     cdc_link_on_line_state(&board.link, dtr);
 }
 
+void board_link_line_coding(uint32_t baud)
+{
+    host_baud = baud;
+}
+
 /* ------------------------------------------------------------------ LEDs */
 
 static void led(void *ctx, uint8_t index, bool on)
@@ -301,5 +309,47 @@ const port_t *board_port_start(void)
 
 void board_port_poll(void)
 {
+    cdc_link_pump(&board.link);
+}
+
+/* ------------------------------------------------------------------ servo set-up bridge */
+
+bool board_servo_bridge_selected(void)
+{
+    return (board_config_inputs() & 1u) != 0u;          /* CFG0 closed */
+}
+
+void board_servo_bridge_start(void)
+{
+    servo_bridge_init(&bridge);
+    led(NULL, 0u, true);
+}
+
+/* The bus at the host's bit rate: reception stopped, USART1 set up again, reception re-armed. */
+static void bridge_set_baud(uint32_t baud)
+{
+    (void)HAL_UART_AbortReceive(&huart1);
+    huart1.Init.BaudRate = baud;
+    (void)HAL_HalfDuplex_Init(&huart1);
+    servo_release_line();
+    servo_rx_arm();
+}
+
+void board_servo_bridge_poll(void)
+{
+    uint8_t buf[64];
+    const uint32_t baud = host_baud;
+    if (baud != 0u && baud != huart1.Init.BaudRate && !servo_busy(NULL)) bridge_set_baud(baud);
+    servo_power(NULL, board.link.dtr);
+    size_t n = cdc_link_read(&board.link, buf, sizeof buf);
+    for (size_t i = 0u; i < n; ++i) {
+        const size_t len = servo_bridge_feed(&bridge, buf[i]);
+        if (len == 0u) continue;
+        while (servo_busy(NULL)) {
+        }                                               /* ends: a stuck send is aborted */
+        (void)servo_send(NULL, bridge.packet, len);
+    }
+    n = servo_read(NULL, buf, sizeof buf);
+    if (n > 0u) (void)cdc_link_write(&board.link, buf, n);
     cdc_link_pump(&board.link);
 }
