@@ -104,8 +104,9 @@ def test_debug_builds_stop_the_watchdog_while_a_debugger_halts_the_core(debug):
 
 def test_a_stop_cuts_the_supply_lights_both_leds_and_leaves_the_watchdog_running(guard):
     """board_stop, Error_Handler's, on a board whose start-up stopped before its pins and its
-    watchdog were set up (the external clock at boot): PA8 an output driven low, PA5 and PA6 (LD2, LED1) outputs driven high, interrupts off, the watchdog
-    started with its 250 ms and loaded, halted."""
+    watchdog were set up (the external clock at boot): PA8 an output driven low, PA5 and PA6
+    (LD2, LED1) outputs driven high, interrupts off, the watchdog started with its 250 ms and
+    loaded, halted."""
     lib = guard[1]
     lib.fake_reset()
     lib.fake_guard_reset()

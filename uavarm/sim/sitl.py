@@ -21,6 +21,7 @@ import time
 import tty
 from collections import deque
 
+from .ax12_sim import AX12, AX12Bus
 from .board import Gravity, Rocking, SimBoard
 from .imu_model import Mpu6050Sensor
 
@@ -143,7 +144,6 @@ class ServoBusPort:
     while holding `lock` to plug one out and another in."""
 
     def __init__(self, servos=None):
-        from .ax12_sim import AX12, AX12Bus
         self.bus = AX12Bus([AX12(1)] if servos is None else servos, baud=1_000_000)
         self.lock = threading.Lock()
         self._master, self._slave = os.openpty()
