@@ -29,10 +29,12 @@ GENERATED_SOURCES = \
     ../generated/messages.c \
     ../generated/servo_map.c
 
-# Board logic without the HAL (ring buffers, CDC transmit queue): host-tested.
+# Board logic without the HAL (ring buffers, CDC transmit queue, the servo set-up bridge's
+# packet filter): host-tested.
 BOARD_LOGIC_SOURCES = \
     Board/Src/byte_ring.c \
-    Board/Src/cdc_link.c
+    Board/Src/cdc_link.c \
+    Board/Src/servo_bridge.c
 
 # Written against the STM32CubeF4 HAL and USB device library.
 HAL_SOURCES = \

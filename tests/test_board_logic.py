@@ -19,7 +19,7 @@ BOARD = firmware.FIRMWARE / "Board"
 def board_logic():
     sources = [firmware.FIRMWARE / p for p in firmware.source_lists()["BOARD_LOGIC_SOURCES"]]
     return cbuild.load("board_logic", sources, [BOARD / "Inc" / "byte_ring.h", BOARD / "Inc" / "cdc_link.h"],
-                       include_dirs=[BOARD / "Inc"])
+                       include_dirs=[BOARD / "Inc", firmware.FIRMWARE / "App" / "Inc"])
 
 
 def new_ring(ffi, lib, size, start=0):
@@ -203,3 +203,67 @@ def test_link_receive_keeps_order_and_drops_overflow(board_logic):
     n = lib.cdc_link_read(usb.link, out, 4096)
     assert bytes(ffi.buffer(out, n)) == packet * (lib.CDC_LINK_RX_SIZE // 64)
     assert usb.link.rx.dropped == 128
+
+
+# ------------------------------------------------------------------ the servo set-up bridge's filter
+
+@pytest.fixture(scope="module")
+def bridge_lib():
+    return cbuild.load("servo_bridge", [BOARD / "Src" / "servo_bridge.c"], [BOARD / "Inc" / "servo_bridge.h"],
+                       include_dirs=[BOARD / "Inc", firmware.FIRMWARE / "App" / "Inc"])
+
+
+def passed(ffi, lib, stream: bytes) -> list[bytes]:
+    """The packets the filter lets through, fed stream byte by byte."""
+    bridge = ffi.new("servo_bridge_t *")
+    lib.servo_bridge_init(bridge)
+    out = []
+    for byte in stream:
+        n = lib.servo_bridge_feed(bridge, byte)
+        if n:
+            out.append(bytes(ffi.buffer(bridge.packet, n)))
+    return out
+
+
+# Protocol 1.0 (DynamixelSDK's bytes), AX-12A control table: ID at 3, Baud Rate at 4
+SET_UP = [("ping", 1), ("ping", 7), ("readTx", 1, 0, 5), ("write1ByteTxOnly", 1, 3, 2),
+          ("write1ByteTxOnly", 2, 4, 9)]
+NOT_SET_UP = [("write2ByteTxOnly", 1, 30, 512),          # goal position
+              ("write1ByteTxOnly", 1, 24, 1),            # torque enable
+              ("write2ByteTxOnly", 1, 6, 0),             # CW angle limit
+              ("write1ByteTxOnly", 1, 5, 0),             # return delay
+              ("write2ByteTxOnly", 1, 3, 0x0902),        # ID and Baud Rate in one two-byte write
+              ("write1ByteTxOnly", 254, 3, 5),           # a broadcast write of the ID
+              ("regWriteTxOnly", 1, 3, 1, [2]), ("action", 1), ("factoryReset", 1),
+              ("syncWriteTxOnly", 30, 2, bytes([1, 0, 2]), 3)]
+
+
+def test_the_bridge_passes_the_set_up_packets_and_nothing_else(bridge_lib):
+    """Each of DynamixelSDK's packets alone, then all in one stream with garbage and a
+    corrupted copy of an allowed packet between them: exactly the set-up ones pass, whole."""
+    from sdk_capture import sdk_packet
+    ffi, lib = bridge_lib
+    good = [sdk_packet(*call) for call in SET_UP]
+    bad = [sdk_packet(*call) for call in NOT_SET_UP]
+    for packet in good:
+        assert passed(ffi, lib, packet) == [packet]
+    for packet, call in zip(bad, NOT_SET_UP):
+        assert passed(ffi, lib, packet) == [], call
+    corrupted = good[3][:-1] + bytes([good[3][-1] ^ 1])
+    stream = b"\x00\xff\x42".join(bad + [corrupted] + good + bad)
+    assert passed(ffi, lib, stream) == good
+
+
+@settings(max_examples=300, deadline=None)
+@given(stream=st.lists(st.one_of(st.binary(max_size=12), st.sampled_from([b"\xff\xff", b"\xff\xff\x01\x04\x03"])),
+                       max_size=40).map(b"".join))
+def test_whatever_the_host_sends_only_a_set_up_packet_passes(bridge_lib, stream):
+    """The filter's promise (servo_bridge.h), checked on each packet it passes: Protocol 1.0
+    framing with a right checksum, and a PING, a READ of one servo, or a one-byte WRITE of
+    one servo's ID (3) or Baud Rate (4)."""
+    ffi, lib = bridge_lib
+    for p in passed(ffi, lib, stream):
+        assert p[:2] == b"\xff\xff" and len(p) == p[3] + 4 and (~sum(p[2:-1]) & 0xFF) == p[-1]
+        servo, inst, params = p[2], p[4], p[5:-1]
+        assert (inst == 1 and not params) or (servo != 254 and inst == 2 and len(params) == 2) or \
+            (servo != 254 and inst == 3 and len(params) == 2 and params[0] in (3, 4))

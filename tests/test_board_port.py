@@ -242,3 +242,42 @@ def test_a_host_opening_the_port_gets_no_heartbeats_queued_before(board):
     lib.board_link_transmitted()
     lib.board_port_poll()
     assert bytes(lib.fake.cdc_sent[0:lib.fake.cdc_sent_len]) == b"b01CCb01DD"
+
+
+# ------------------------------------------------------------------ the servo set-up bridge
+
+def test_cfg0_closed_at_reset_selects_the_servo_set_up_bridge(board):
+    ffi, lib, port = board
+    assert not lib.board_servo_bridge_selected()
+    lib.fake.idr[CFG[0][0]] &= ~(1 << CFG[0][1])          # CFG0 bridged to ground
+    assert lib.board_servo_bridge_selected()
+
+
+def test_the_bridge_passes_set_up_packets_at_the_hosts_rate_and_the_replies_back(board):
+    """LED0 lit; the servo supply on only while the host has the port open (DTR); the bus set to
+    the bit rate the host's SET_LINE_CODING gave, reception stopped first and re-armed after; a
+    goal position dropped, the PING after it sent; the servo's reply handed to USB."""
+    from sdk_capture import sdk_packet
+    ffi, lib, port = board
+    lib.board_servo_bridge_start()
+    lib.board_servo_bridge_poll()
+    assert level(lib, LED0) and not level(lib, SERVO_PWR)
+    lib.board_link_line_state(True)
+    lib.board_link_line_coding(1_000_000)
+    arms = lib.fake.receive_arms
+    lib.board_servo_bridge_poll()
+    assert level(lib, SERVO_PWR)
+    assert (lib.fake.baud_set, lib.fake.halfduplex_inits, lib.fake.receive_aborts) == (1_000_000, 1, 1)
+    assert not lib.fake.receive_armed_at_init and lib.fake.receive_arms == arms + 1 and not lib.fake.transmitter_on
+    goal, ping = sdk_packet("write2ByteTxOnly", 1, 30, 512), sdk_packet("ping", 1)
+    lib.board_link_received(goal + ping, len(goal + ping))
+    lib.board_servo_bridge_poll()
+    assert lib.fake.transmit_calls == 1 and bytes(lib.fake.tx[0:lib.fake.tx_len]) == ping
+    lib.fake_uart_tx_complete()
+    reply = b"\xff\xff\x01\x02\x00\xfc"                   # id 1, no error
+    assert all(lib.fake_uart_rx_byte(b) for b in reply)
+    lib.board_servo_bridge_poll()
+    assert bytes(lib.fake.cdc_sent[0:lib.fake.cdc_sent_len]) == reply
+    lib.board_link_line_state(False)
+    lib.board_servo_bridge_poll()
+    assert not level(lib, SERVO_PWR)

@@ -28,7 +28,7 @@ import pytest
 
 from conftest import ROOT, require_arm_toolchain
 from hal_stubs import weak_stubs
-from test_stm32_project import ioc as ioc_of
+from test_stm32_project import cproject_symbols, ioc as ioc_of
 from uavarm.build import cbuild, firmware
 from uavarm.codegen import generate
 from uavarm.model import config
@@ -193,23 +193,36 @@ HARNESS_SOURCES = ["Core/Src/main.c", "Core/Src/stm32f4xx_hal_msp.c", "Core/Src/
                    "USB_DEVICE/Target/usbd_conf.c", "Board/Src/board_clock.c"]
 
 
-def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0):
-    """Builds the CubeMX-owned start-up of fw (with gen's model_params.h) for the host and
-    runs main() to its main loop; returns (record, the CDC buffers' sizes, SystemClock_Config's record)."""
+def board_symbols(hse_hz=8_000_000, bypass=0) -> list[str]:
+    """The defined symbols of the command-line build (the Makefile's DEFS) for a board."""
+    return ["USE_HAL_DRIVER", "STM32F411xE", f"HSE_VALUE={hse_hz}U", f"BOARD_HSE_HZ={hse_hz}u",
+            f"BOARD_HSE_BYPASS={bypass}"]
+
+
+def build_startup(fw: Path, gen: Path, tmp: Path, symbols=None):
+    """The CubeMX-owned start-up of fw (with gen's model_params.h) built for the host over the
+    HAL double with these defined symbols (default: the default board's): (ffi, lib, the
+    shared library's path)."""
     stubs = tmp / "hal_stubs.c"
     stubs.write_text(weak_stubs(FW / "ci" / "hal_decls"))
     includes = [FW / "ci" / "hal_decls"] + [fw / d for d in firmware.source_lists()["FIRMWARE_INCLUDES"]
                                             if d != "../generated"] + [gen, CSRC]
-    flags = ["-DUSE_HAL_DRIVER", "-DSTM32F411xE", f"-DHSE_VALUE={hse_hz}U", f"-DBOARD_HSE_HZ={hse_hz}u",
-             f"-DBOARD_HSE_BYPASS={bypass}", "-Dmain=firmware_main",
-             "-Wno-unused-parameter"]   # CubeMX's usbd_conf.c and the generated weak stubs
+    flags = [f"-D{s}" for s in (symbols or board_symbols())] + [
+        "-Dmain=firmware_main", "-Wno-unused-parameter"]   # CubeMX's usbd_conf.c and the generated weak stubs
     sources = [fw / s for s in HARNESS_SOURCES] + [CSRC / "fake_cube.c", stubs]
     ffi, lib = cbuild.load("cube_startup", sources, [CSRC / "fake_cube.h"], include_dirs=includes,
                            extra_flags=flags)
-    so = cbuild.build_shared("cube_startup", sources, includes, flags)
+    return ffi, lib, cbuild.build_shared("cube_startup", sources, includes, flags)
+
+
+def boot(fw: Path, gen: Path, tmp: Path, hse_hz=8_000_000, bypass=0, symbols=None):
+    """Builds the CubeMX-owned start-up of fw (with gen's model_params.h) for the host with
+    these symbols (default: the board's of hse_hz and bypass) and runs main() to its main
+    loop; returns (record, the CDC buffers' sizes, SystemClock_Config's record)."""
+    ffi, lib, so = build_startup(fw, gen, tmp, symbols or board_symbols(hse_hz, bypass))
     cube = ffi.addressof(lib, "cube")
     fields = [name for name, _ in ffi.typeof("fake_cube_t").fields]
-    assert lib.fake_cube_boot() == 1 and not cube.error_handler
+    assert lib.fake_cube_boot(0, 0) == 1 and not cube.error_handler
     record = {name: getattr(cube, name) for name in fields}
     record["nvic_priority"] = list(cube.nvic_priority)
     record["nvic_enabled"] = list(cube.nvic_enabled)
@@ -279,6 +292,46 @@ def test_committed_start_up_gives_the_model_and_board_numbers(tmp_path, model):
     # CubeMX's SystemClock_Config (from the .ioc, not called) sets the same clock as the
     # board's default: the .ioc's clock tree is the default board's
     assert cubemx_clock == {name: record[name] for name in cubemx_clock}
+
+
+# The boards the build configurations are for, and the clock each has on OSC_IN: a crystal of
+# the .ioc's 8 MHz (RCC.HSE_VALUE), or on a NUCLEO-F411RE the ST-LINK's 8 MHz MCO output
+# (UM1724, "OSC clock": HSE bypass)
+@pytest.mark.parametrize("configuration, bypass", [("Debug", 0), ("Release", 0), ("Nucleo_Debug", 1),
+                                                   ("Nucleo_Release", 1)])
+def test_each_cubeide_configuration_programs_its_boards_clock(configuration, bypass, tmp_path, model):
+    """main() built with exactly the configuration's defined symbols (.cproject): the HSE in
+    bypass mode for the Nucleo, oscillator mode for the crystal, and from its 8 MHz the PLL's
+    M, N, P, Q giving 96 MHz SYSCLK and 48 MHz USB within RM0383's limits (check_peripherals);
+    the rest of the start-up as for every board."""
+    record, sizes, _ = boot(FW, ROOT / "generated", tmp_path, symbols=cproject_symbols(configuration))
+    check_peripherals(record, sizes, model, 8_000_000, bypass)
+    # the tree docs/board.md states (PLLP = RCC_PLLP_DIV4, the HAL value 4)
+    assert (record["pll_m"], record["pll_n"], record["pll_p"], record["pll_q"]) == (8, 384, 4, 8)
+
+
+def test_a_clock_that_does_not_start_stops_the_board_before_any_peripheral(tmp_path):
+    """The HSE never ready (HAL_RCC_OscConfig's timeout: a NUCLEO-F411RE built for a crystal,
+    a crystal that does not oscillate): main() goes from the board's clock to Error_Handler,
+    which stops in board_stop (supply off, LEDs on, watchdog running: tests/test_board_guard.py),
+    before any peripheral, the USB stack, the board's guard or the clock security system."""
+    ffi, lib, _ = build_startup(FW, ROOT / "generated", tmp_path)
+    assert lib.fake_cube_boot(1, 0) == 0
+    cube = ffi.addressof(lib, "cube")
+    assert cube.error_handler and cube.osc_configs == 1 and cube.clock_configs == 0 and cube.css_enabled == 0
+    assert (cube.halfduplex_inits, cube.i2c_inits, cube.tim2_prescaler, cube.usbd_started, cube.guard_started) == \
+        (0, 0, 0, 0, 0)
+
+
+def test_cfg0_closed_runs_the_servo_set_up_bridge_instead_of_the_arm(tmp_path):
+    """With the bridge selected, main() starts the peripherals and the board's guard, then
+    the bridge, whose loop feeds the watchdog before each poll; the tick timer is never
+    started and the main loop never reached."""
+    ffi, lib, _ = build_startup(FW, ROOT / "generated", tmp_path)
+    assert lib.fake_cube_boot(0, 1) == 0
+    cube = ffi.addressof(lib, "cube")
+    assert (cube.guard_started, cube.bridge_started, cube.bridge_polled) == (1, 1, 1)
+    assert cube.usbd_started == 1 and cube.tim3_started_it == 0 and not cube.error_handler
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ file system (which sources exist), the C preprocessor's includes, and the compil
 import os
 import re
 import shutil
+import struct
 import subprocess
 import time
 import xml.etree.ElementTree as ET
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+import st_startup
 from conftest import ROOT, require_arm_toolchain, skip_unless_ci
 from hal_stubs import weak_stubs
 from uavarm.build import firmware
@@ -152,27 +154,44 @@ CIDE_VALUES = {
 
 
 def cproject_configurations():
-    """{name: {option superClass suffix: option element}} of each build configuration."""
+    """{name: {option superClass suffix: option element, and "builder": the builder element}}
+    of each build configuration."""
     configs = {}
     for conf in ET.parse(FW / ".cproject").getroot().iter("configuration"):
         if conf.get("artifactExtension") != "elf":
             continue
         configs[conf.get("name")] = {opt.get("superClass").removeprefix(CIDE + "."): opt
                                      for opt in conf.iter("option")}
+        configs[conf.get("name")]["builder"] = conf.find(".//builder")
     return configs
 
 
+# The build configurations: CubeIDE's Debug and Release for a board with its own crystal, and
+# their copies for a NUCLEO-F411RE, whose OSC_IN the ST-LINK drives (HSE bypass)
+CONFIGURATIONS = {"Debug": "Debug", "Release": "Release", "Nucleo_Debug": "Debug", "Nucleo_Release": "Release"}
+
+
+def cproject_symbols(configuration: str) -> list[str]:
+    """The C compiler's defined symbols (-D) of a build configuration."""
+    opts = cproject_configurations()[configuration]
+    return [v.get("value") for v in opts["tool.c.compiler.option.definedsymbols"].iter("listOptionValue")]
+
+
 def test_cproject_has_debug_and_release_as_cubeide_writes_them():
-    """Both configurations CubeIDE creates, each with the option.defaults record CubeMX
-    compares against when it regenerates, the MCU, the linker script CubeIDE names, and
-    option values that occur in CubeIDE-written projects; Release optimises (-Os) and
-    leaves DEBUG undefined."""
+    """The configurations CubeIDE creates, Debug and Release, and their copies for the
+    NUCLEO-F411RE (Manage Configurations, New, settings copied: the option.defaults record
+    CubeMX compares against when it regenerates keeps its source's name), each with the MCU,
+    the linker script CubeIDE names, its own build folder, and option values that occur in
+    CubeIDE-written projects; Release optimises (-Os) and leaves DEBUG undefined (DEBUG also
+    freezes the watchdog for the debugger: test_board_guard.py); the Nucleo copies add
+    BOARD_HSE_BYPASS=1 and nothing else."""
     configs = cproject_configurations()
-    assert set(configs) == {"Debug", "Release"}
+    assert set(configs) == set(CONFIGURATIONS)
     for name, opts in configs.items():
+        kind = CONFIGURATIONS[name]
         defaults = [f.strip() for f in opts["option.defaults"].get("value").split("||")]
         assert defaults[0].startswith("com.st.stm32cube.ide.common.services.build.inputs.revA.")
-        assert defaults[1] == name and defaults[5] == "STM32F411RETx"
+        assert defaults[1] == kind and defaults[5] == "STM32F411RETx"
         assert "${workspace_loc:/${ProjName}/STM32F411RETX_FLASH.ld}" in defaults
         assert opts["option.target_mcu"].get("value") == "STM32F411RETx"
         script = opts["tool.c.linker.option.script"].get("value")
@@ -180,11 +199,13 @@ def test_cproject_has_debug_and_release_as_cubeide_writes_them():
         assert (FW / "STM32F411RETX_FLASH.ld").is_file()
         for option, allowed in CIDE_VALUES.items():
             assert opts[option].get("value") in allowed, (name, option)
-        symbols = [v.get("value") for v in opts["tool.c.compiler.option.definedsymbols"].iter("listOptionValue")]
-        assert {"USE_HAL_DRIVER", "STM32F411xE"} <= set(symbols)
-        assert ("DEBUG" in symbols) == (name == "Debug")
-    release = configs["Release"]["tool.c.compiler.option.optimization.level"].get("value")
-    assert release.endswith(".value.os")
+        symbols = cproject_symbols(name)
+        board = [s for s in symbols if s.startswith("BOARD_") or s.startswith("HSE_")]
+        assert set(symbols) - set(board) == {"USE_HAL_DRIVER", "STM32F411xE"} | ({"DEBUG"} if kind == "Debug" else set())
+        assert board == (["BOARD_HSE_BYPASS=1"] if name.startswith("Nucleo_") else [])
+        optimisation = opts["tool.c.compiler.option.optimization.level"].get("value")
+        assert optimisation.endswith(".value.os" if kind == "Release" else ".value.og")
+        assert opts["builder"].get("buildPath") == "${workspace_loc:/manipulator}/" + name
 
 
 def test_makefile_and_cubeide_link_with_the_same_script():
@@ -416,7 +437,7 @@ def test_servo_supply_is_off_from_reset_until_the_application_switches_it():
         body = it_c[it_c.index(f"void {handler}(void)"):]
         assert body.index("board_fault();") < body.index("while (1)"), handler
     err = main_c[main_c.index("void Error_Handler(void)"):]
-    assert err.index("board_servo_power_off();") < err.index("while (1)")
+    assert err.index("board_stop();") < err.index("while (1)")   # supply off first (test_board_guard.py)
 
 
 # ------------------------------------------------------------------ command-line build
@@ -486,29 +507,6 @@ def test_bus_clocks_give_the_model_baud_and_fast_mode_i2c():
     assert int(k["RCC.APB1Freq_Value"]) >= 4 * MHZ
 
 
-STARTUP_STANDIN = """
-    .syntax unified
-    .cpu cortex-m4
-    .thumb
-    .section .isr_vector,"a",%progbits
-    .global g_pfnVectors
-g_pfnVectors:
-    .word _estack
-    .word Reset_Handler
-    .text
-    .thumb_func
-    .global Default_Handler
-Default_Handler:
-    b .
-    .thumb_func
-    .global Reset_Handler
-Reset_Handler:
-    bl SystemInit
-    bl main
-    b .
-"""
-
-
 def standin_cube_tree(root: Path):
     """An STM32CubeF4-shaped tree whose headers are ci/hal_decls and whose sources are empty
     weak functions of the declared prototypes: enough to run the Makefile's real build
@@ -531,7 +529,7 @@ def standin_cube_tree(root: Path):
     for module in modules.replace("\\", " ").split():
         (hal / "Src" / f"stm32f4xx_{module}.c").touch(exist_ok=True)
     (dev / "Source" / "Templates" / "system_stm32f4xx.c").write_text("void SystemInit(void) { }\n")
-    (dev / "Source" / "Templates" / "gcc" / "startup_stm32f411xe.s").write_text(STARTUP_STANDIN)
+    (dev / "Source" / "Templates" / "gcc" / "startup_stm32f411xe.s").write_text(st_startup.text())
     for src in ("Core/Src/usbd_core.c", "Core/Src/usbd_ctlreq.c", "Core/Src/usbd_ioreq.c", "Class/CDC/Src/usbd_cdc.c"):
         (usb / src).touch()
     return root
@@ -550,15 +548,33 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     assert elf.exists() and binary.exists() and hexfile.exists()
     symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
     for name in ("main", "app_init", "app_poll", "board_port_start", "kin_ik_nearest", "Reset_Handler"):
-        assert re.search(rf" T {name}$", symbols, re.M), name
-    words = binary.read_bytes()[:8]
-    stack, reset = int.from_bytes(words[:4], "little"), int.from_bytes(words[4:], "little")
+        assert re.search(rf" [TW] {name}$", symbols, re.M), name
+    table = struct.unpack(f"<{st_startup.VECTORS}I", binary.read_bytes()[:4 * st_startup.VECTORS])
+    stack, reset = table[:2]
     assert stack == 0x2000_0000 + 128 * 1024                 # _estack: top of the 128 KB SRAM
-    reset_sym = int(re.search(r"^([0-9a-f]+) T Reset_Handler$", symbols, re.M).group(1), 16)
-    assert reset == reset_sym | 1 and 0x0800_0000 <= reset_sym < 0x0808_0000   # thumb, in flash
+    address = lambda name: int(re.search(rf"^([0-9a-f]+) [TtWw] {name}$", symbols, re.M).group(1), 16)
+    assert reset == address("Reset_Handler") | 1 and 0x0800_0000 <= reset < 0x0808_0000   # thumb, in flash
+    # ST's construct as linked: the entries of the handlers the firmware leaves to the start-up
+    # file hold Default_Handler | 1, while Default_Handler's own address is even
+    default = address("Default_Handler")
+    unused = [n for n, word in enumerate(table) if word & ~1 == default]
+    assert default % 2 == 0 and len(unused) == 54 and {table[n] for n in unused} == {default | 1}
     first = hexfile.read_text().splitlines()[0]
     assert first == ":020000040800F2"                         # Intel HEX: upper address 0x0800
     print(subprocess.run(["arm-none-eabi-size", str(elf)], capture_output=True, text=True).stdout)
+
+
+@pytest.mark.parametrize("configuration", ["Nucleo_Debug", "Nucleo_Release"])
+def test_the_nucleo_configurations_build_for_the_target(configuration, tmp_path):
+    """The command-line build with exactly the CubeIDE configuration's defined symbols
+    (BOARD_HSE_BYPASS=1, and DEBUG in Nucleo_Debug) compiles with warnings as errors and links.
+    The clock those symbols program: test_cubemx_regeneration.py."""
+    require_arm_toolchain()
+    cube = standin_cube_tree(tmp_path / "cube")
+    defs = " ".join(f"-D{symbol}" for symbol in cproject_symbols(configuration))
+    proc = make(f"STM32CUBE_F4={cube}", f"BUILD={tmp_path / 'build'}", f"DEFS={defs}", check=False)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "-DBOARD_HSE_BYPASS=1" in proc.stdout and (tmp_path / "build" / "manipulator.elf").exists()
 
 
 # ------------------------------------------------------------------ builds that never mix old and new

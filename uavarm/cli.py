@@ -1,5 +1,6 @@
 """The `uavarm` command: codegen, demo, link (talk to a board), sitl (a simulated board),
-sim (the closed-loop simulator's table and plots), workspace (the reachable-region plot)."""
+sim (the closed-loop simulator's table and plots), workspace (the reachable-region plot),
+servos (new servos' ids and baud, through the board or a Dynamixel adapter)."""
 from __future__ import annotations
 
 import argparse
@@ -233,6 +234,19 @@ def parser() -> argparse.ArgumentParser:
     st.add_argument("--link-delay-ms", default="0", metavar="UP[,DOWN]",
                     help="the link's delay to the board and back from it (ms; DOWN as UP if left out; "
                          "default: %(default)s)")
+    st.add_argument("--servo-bus", action="store_true",
+                    help="instead of the board: a simulated servo bus with one AX-12A as it ships (id 1 at "
+                         "1 Mbit/s), as through a Dynamixel adapter, for `uavarm servos setup`")
+    sv = sub.add_parser("servos", help="set up new AX-12A servos through the board (CFG0 closed at reset) or a "
+                                       "Dynamixel adapter")
+    sv.add_argument("action", choices=["setup"],
+                    help="setup: give each joint's servo, connected alone, the model file's id and the bus's "
+                         "baud rate (each write confirmed, then read back)")
+    sv.add_argument("port", help="serial device: the board with CFG0 closed, an adapter (U2D2, USB2Dynamixel), "
+                                 "or the path `uavarm sitl --servo-bus` prints")
+    sv.add_argument("--model", default=None, help="model file with the ids and baud (default: model/manipulator.toml)")
+    sv.add_argument("--timeout", type=POSITIVE, default=0.1,
+                    help="seconds to wait for a servo's answer (default: %(default)s)")
     sm = sub.add_parser("sim", help="closed-loop simulation of a drone scenario: end-effector error table and plots")
     sm.add_argument("scenario", help="bench, hover, manoeuvre, or a scenario file (uavarm/sim/scenarios.py)")
     sm.add_argument("--show", action="store_true",
@@ -335,6 +349,12 @@ def run(args) -> int:
     if args.command == "calibrate":
         from .calibrate import command
         return command(args)
+    if args.command == "servos":
+        from .calibrate import servo_setup
+        return servo_setup.command(args)
+    if args.command == "sitl" and args.servo_bus:
+        from .sim import sitl
+        return sitl.serve_servo_bus()
     if args.command == "sitl":
         from .sim import sitl
         _require_current_code()

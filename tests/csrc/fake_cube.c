@@ -21,9 +21,11 @@ fake_cube_t cube;
 USBD_ClassTypeDef USBD_CDC;
 static jmp_buf boot;
 
-int fake_cube_boot(void)
+int fake_cube_boot(int hse_fails, int bridge)
 {
     memset(&cube, 0, sizeof cube);
+    cube.hse_fails = hse_fails;
+    cube.bridge_selected = bridge;
     if (setjmp(boot) == 0) {
         (void)firmware_main();
     }
@@ -68,13 +70,18 @@ void board_link_connected(void) { }
 void board_link_received(const uint8_t *bytes, uint32_t n) { (void)bytes; (void)n; }
 void board_link_transmitted(void) { }
 void board_link_line_state(bool dtr) { cube.line_states++; cube.dtr = dtr; }
+void board_link_line_coding(uint32_t baud) { cube.line_coding_baud = baud; }
+bool board_servo_bridge_selected(void) { return cube.bridge_selected; }
+void board_servo_bridge_start(void) { cube.bridge_started++; }
+/* main() polls the bridge for ever: the first poll, after the watchdog's feed, ends the run here. */
+void board_servo_bridge_poll(void) { cube.bridge_polled = cube.watchdog_fed; longjmp(boot, 3); }
 board_reset_t board_guard_start(void) { cube.guard_started++; return (board_reset_t){ 0u, 0u }; }
-void board_watchdog_feed(void) { }
+void board_watchdog_feed(void) { cube.watchdog_fed++; }
 void board_fault(void) { }
 bool app_healthy(const app_t *app) { (void)app; return true; }
 
-/* Error_Handler() ends in __disable_irq() and an endless loop: leave it here. */
-void __disable_irq(void)
+/* Error_Handler() stops in board_stop() (tests/test_board_guard.py checks what it does): leave it here. */
+void board_stop(void)
 {
     cube.error_handler = 1;
     longjmp(boot, 2);
@@ -92,6 +99,7 @@ HAL_StatusTypeDef HAL_Init(void)
 HAL_StatusTypeDef HAL_RCC_OscConfig(RCC_OscInitTypeDef *o)
 {
     cube.osc_configs++;
+    if (cube.hse_fails) return HAL_TIMEOUT;      /* HSERDY never set within HSE_STARTUP_TIMEOUT */
     cube.hse_state = o->HSEState;
     cube.pll_state = o->PLL.PLLState;
     cube.pll_source = o->PLL.PLLSource;

@@ -12,6 +12,9 @@
 typedef struct {
     int reached_main_loop;           /* main() got to its first app_poll() */
     int error_handler;               /* Error_Handler() was called */
+    int hse_fails;                   /* HAL_RCC_OscConfig answers HAL_TIMEOUT: the HSE does not start */
+    int bridge_selected;             /* board_servo_bridge_selected's answer (CFG0 closed) */
+    uint32_t bridge_started, bridge_polled, watchdog_fed;   /* bridge_polled: the feeds before its first poll */
     uint32_t system_clock_config;    /* calls of CubeMX's SystemClock_Config */
     /* what HAL_RCC_OscConfig and HAL_RCC_ClockConfig received (HAL constant values) */
     uint32_t osc_configs, hse_state, pll_state, pll_source, pll_m, pll_n, pll_p, pll_q;
@@ -21,6 +24,7 @@ typedef struct {
     /* board_link_line_state: calls and the last DTR */
     uint32_t line_states;
     int dtr;
+    uint32_t line_coding_baud;       /* board_link_line_coding's last bit rate */
     /* USART1 */
     uint32_t halfduplex_inits, uart_inits, baud;
     /* I2C1 */
@@ -39,8 +43,10 @@ typedef struct {
 
 extern fake_cube_t cube;
 
-/* Runs the firmware's main() until its main loop; returns cube.reached_main_loop. */
-int fake_cube_boot(void);
+/* Runs the firmware's main() until its main loop, Error_Handler (hse_fails: the external
+ * clock does not start) or the servo set-up bridge's first poll (bridge: CFG0 closed);
+ * returns cube.reached_main_loop. */
+int fake_cube_boot(int hse_fails, int bridge);
 /* Calls CubeMX's SystemClock_Config alone (main() leaves it out). */
 void fake_cube_system_clock_config(void);
 /* The host's CDC SET_CONTROL_LINE_STATE request with this wValue (bit 0 DTR), as the USB

@@ -15,7 +15,10 @@ void Default_Handler(void);
 void fake_used_handler(void);
 extern uint32_t fake_halts;          /* board_fault's halt, returning here */
 extern uint32_t fake_dsbs;
-/* the registers, as RCC->CSR, IWDG->KR/PR/RLR, SCB->ICSR/VTOR */
+extern uint32_t fake_error_handlers; /* Error_Handler calls */
+extern uint32_t fake_irq_disabled;   /* __disable_irq called */
+/* the registers, as RCC->CSR, IWDG->KR/PR/RLR/SR, SCB->ICSR/VTOR, DBGMCU->APB1FZ; all zero after the reset */
+void fake_guard_reset(void);
 uint32_t fake_guard_get(const char *reg);
 void fake_guard_set(const char *reg, uint32_t value);
 /* Calls entry n of the table in RAM with SCB->ICSR's active exception n, as the core does. */

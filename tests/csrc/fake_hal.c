@@ -143,6 +143,25 @@ HAL_StatusTypeDef HAL_UART_Receive_IT(UART_HandleTypeDef *huart, uint8_t *pData,
     return HAL_OK;
 }
 
+HAL_StatusTypeDef HAL_UART_AbortReceive(UART_HandleTypeDef *huart)
+{
+    huart->RxState = HAL_UART_STATE_READY;
+    rx_target = NULL;
+    fake.receive_aborts++;
+    return HAL_OK;
+}
+
+/* On a handle already set up (UM1725): the new Init values taken, both states READY. */
+HAL_StatusTypeDef HAL_HalfDuplex_Init(UART_HandleTypeDef *huart)
+{
+    fake.halfduplex_inits++;
+    fake.baud_set = huart->Init.BaudRate;
+    fake.receive_armed_at_init = huart->RxState == HAL_UART_STATE_BUSY_RX;
+    huart->gState = HAL_UART_STATE_READY;
+    huart->RxState = HAL_UART_STATE_READY;
+    return HAL_OK;
+}
+
 HAL_StatusTypeDef HAL_UART_AbortTransmit(UART_HandleTypeDef *huart)
 {
     huart->gState = HAL_UART_STATE_READY;
@@ -153,6 +172,9 @@ HAL_StatusTypeDef HAL_UART_AbortTransmit(UART_HandleTypeDef *huart)
 /* ---- GPIO */
 void HAL_GPIO_Init(GPIO_TypeDef *GPIOx, const GPIO_InitTypeDef *GPIO_Init)
 {
+    const bool output = GPIO_Init->Mode == GPIO_MODE_OUTPUT_PP || GPIO_Init->Mode == GPIO_MODE_OUTPUT_OD;
+    uint16_t *outputs = &fake.outputs[port_index(GPIOx)];
+    *outputs = (uint16_t)(output ? *outputs | GPIO_Init->Pin : *outputs & ~GPIO_Init->Pin);
     if (GPIOx == IMU_SCL_GPIO_Port && (GPIO_Init->Pin & IMU_SCL_Pin)) {
         gpio_mode_on_i2c_pins = GPIO_Init->Mode == GPIO_MODE_OUTPUT_OD;
     }

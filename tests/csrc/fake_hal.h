@@ -22,9 +22,14 @@ typedef struct {
     int refuse_receive_arm;          /* Receive_IT answers HAL_BUSY (e.g. handle locked) */
     int refuse_enable_receiver;      /* EnableReceiver answers HAL_BUSY (handle locked) */
     uint32_t aborts;
-    /* GPIO: output and input levels, [port index A=0..H=7] bit = pin */
+    uint32_t receive_aborts;
+    uint32_t halfduplex_inits;
+    uint32_t baud_set;               /* the BaudRate the last HAL_HalfDuplex_Init took */
+    int receive_armed_at_init;       /* a reception was still armed when it was called */
+    /* GPIO: output and input levels, pins HAL_GPIO_Init made outputs; [port index A=0..H=7] bit = pin */
     uint16_t odr[8];
     uint16_t idr[8];
+    uint16_t outputs[8];
     uint32_t scl_pulses;             /* SCL (PB8) low-to-high edges while a GPIO output */
     /* I2C1 */
     uint16_t dev_address;

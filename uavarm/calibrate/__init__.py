@@ -1,7 +1,8 @@
 """Calibrating a real arm: the guided procedures over the link (guide; `imu`, `mounting`,
 `servos` and the CLI's `command` are importable from here), the least-squares fits and
 stillness checks (fit), and writing results into the model file with its comments kept
-(model_edit)."""
+(model_edit); and new servos' ids and baud through a Dynamixel adapter (servo_setup, over the
+Protocol 1.0 of dxl)."""
 from .guide import command, imu, mounting, servos
 
 __all__ = ["command", "imu", "mounting", "servos"]

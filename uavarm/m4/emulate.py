@@ -104,7 +104,8 @@ def _return_value(uc, A, ret: str):
     return values[ret]()
 
 
-def call(image: Image, func: str, args, ret: str, max_insns: int) -> Result:
+def call(image: Image, func: str, args, ret: str, max_insns: int, setup=None) -> Result:
+    """setup(uc), if given, runs before the call: hooks that model a peripheral's registers."""
     from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc, UcError
     from unicorn import arm_const as A
 
@@ -134,6 +135,8 @@ def call(image: Image, func: str, args, ret: str, max_insns: int) -> Result:
     # unicorn 2.1 executes.)
     stack_floor = (free + 255) & ~255
     uc.mem_write(stack_floor, PAINT * ((sp - stack_floor) // 4))
+    if setup is not None:
+        setup(uc)
     trace = []
     uc.hook_add(UC_HOOK_CODE, lambda _uc, addr, _size, _data: trace.append(addr),
                 begin=FLASH, end=FLASH + FLASH_SIZE - 1)

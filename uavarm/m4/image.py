@@ -69,8 +69,11 @@ class Image:
         self.segments = _load_segments(data)
         self.end = max((addr + size for addr, _, size in self.segments if addr >= RAM), default=RAM)
         self.functions: dict[str, Function] = {}
+        self.symbols: dict[str, int] = {}      # every defined symbol's address (nm: no Thumb bit)
         for line in _run(["arm-none-eabi-nm", "-S", "--defined-only", self.elf]).splitlines():
             parts = line.split()
+            if len(parts) >= 3:
+                self.symbols.setdefault(parts[-1], int(parts[0], 16))
             if len(parts) == 4 and parts[2] in "tTwW":
                 f = Function(parts[3], int(parts[0], 16) & ~1, int(parts[1], 16))
                 self.functions.setdefault(f.name, f)
@@ -91,10 +94,17 @@ class Image:
                 return f.name
         return "?"
 
-    def call(self, func: str, args=(), ret: str = "float", max_insns: int = 20_000_000):
+    def read(self, addr: int, size: int) -> bytes:
+        """size bytes at addr as the image loads them (zeros where a segment has no file bytes)."""
+        for start, data, memsz in self.segments:
+            if start <= addr and addr + size <= start + memsz:
+                return (data + bytes(memsz - len(data)))[addr - start:addr - start + size]
+        raise ValueError(f"{addr:#x}+{size} is not in one loaded segment")
+
+    def call(self, func: str, args=(), ret: str = "float", max_insns: int = 20_000_000, setup=None):
         """Run func(*args) once; see emulate.call."""
         from . import emulate
-        return emulate.call(self, func, args, ret, max_insns)
+        return emulate.call(self, func, args, ret, max_insns, setup)
 
 
 def _load_segments(data: bytes) -> list[tuple[int, bytes, int]]:

@@ -1,4 +1,5 @@
-"""The simulated board behind a pseudo-terminal: `uavarm sitl [SCENARIO]`.
+"""The simulated board behind a pseudo-terminal: `uavarm sitl [SCENARIO]`; and a simulated
+servo bus behind one, as through a Dynamixel adapter: `uavarm sitl --servo-bus`.
 
 The firmware application (host build) runs in real time (or `speed` times faster) with the
 simulated servos and IMU; a pseudo-terminal stands in for the board's USB virtual COM port,
@@ -10,18 +11,24 @@ Scenarios: `level` (default), `tilt:ROLL,PITCH` (degrees, held still) and
 """
 from __future__ import annotations
 
+import fcntl
 import math
 import os
+import select
+import struct
 import threading
 import time
 import tty
 from collections import deque
 
+from .ax12_sim import AX12, AX12Bus
 from .board import Gravity, Rocking, SimBoard
 from .imu_model import Mpu6050Sensor
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
 SLICE_S = 0.002
+# ioctl reading a tty's struct termios2 (Linux, asm-generic): its speeds are the bit rates
+TCGETS2 = 0x802C542A
 
 
 SCENARIOS = "level, tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (deg, deg, Hz)"
@@ -125,6 +132,66 @@ class Sitl:
                     time.sleep(0.0005)
         finally:
             self.close()
+
+
+class ServoBusPort:
+    """A Dynamixel adapter (as a ROBOTIS U2D2 with its power hub) on a simulated AX-12A bus,
+    behind a pseudo-terminal: what is written to `device` goes out on the bus at the baud the
+    port is set to (as pyserial sets it), and the servos' replies come back. Simulated time
+    runs only while bytes are on the wire and the replies are written at once, so what the
+    port answers does not depend on this machine's speed. `servos` are the AX12 objects
+    connected (default: one AX-12A as it ships, id 1 at 1 Mbit/s); change `bus.servos`
+    while holding `lock` to plug one out and another in."""
+
+    def __init__(self, servos=None):
+        self.bus = AX12Bus([AX12(1)] if servos is None else servos, baud=1_000_000)
+        self.lock = threading.Lock()
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        self.device = os.ttyname(self._slave)
+        self._stop = threading.Event()
+
+    def baud(self) -> int:
+        """The baud rate the port is set to (Linux termios2: any rate, as pyserial sets it)."""
+        buf = bytearray(44)                               # struct termios2
+        fcntl.ioctl(self._slave, TCGETS2, buf)
+        return struct.unpack_from("<I", buf, 40)[0]       # c_ospeed
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def run(self) -> None:
+        """Serves the port until stop() (from another thread) or Ctrl-C."""
+        try:
+            while not self._stop.is_set():
+                if not select.select([self._master], [], [], 0.02)[0]:
+                    continue
+                try:
+                    data = os.read(self._master, 4096)
+                except OSError:
+                    continue
+                with self.lock:
+                    self.bus.baud = self.baud()
+                    self.bus.write(data)
+                    self.bus.settle()
+                    reply = self.bus.read()
+                if reply:
+                    os.write(self._master, reply)
+        finally:
+            for fd in (self._master, self._slave):
+                os.close(fd)
+
+
+def serve_servo_bus() -> int:
+    """`uavarm sitl --servo-bus`: one AX-12A as it ships on a simulated bus behind a pty."""
+    port = ServoBusPort()
+    print(f"simulated servo bus on {port.device}: one AX-12A as it ships (id 1 at 1 Mbit/s), as through a "
+          "Dynamixel adapter; Ctrl-C stops", flush=True)
+    try:
+        port.run()
+    except KeyboardInterrupt:
+        print("stopped")
+    return 0
 
 
 def angles_of(text: str) -> tuple[float, float, float]:

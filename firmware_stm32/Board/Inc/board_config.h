@@ -14,7 +14,8 @@
 #endif
 
 /* 0: a crystal between OSC_IN and OSC_OUT (custom board). 1: a clock signal on OSC_IN
- * (NUCLEO-F411RE's ST-LINK MCO, the HSE "bypass" mode of RM0383 6.2.1). */
+ * (NUCLEO-F411RE's ST-LINK MCO, the HSE "bypass" mode of RM0383 6.2.1): CubeIDE's
+ * Nucleo_Debug and Nucleo_Release configurations define it. */
 #ifndef BOARD_HSE_BYPASS
 #define BOARD_HSE_BYPASS 0
 #endif
@@ -57,5 +58,12 @@
  * run in the last two periods, the clock moving) for this long: 250 ms nominal, 170-470 ms
  * over the LSI oscillator's 17-47 kHz (RM0383 17.3, datasheet 6.3.9). 1-4096 ms. */
 #define BOARD_WATCHDOG_MS 250u
+
+/* Reads of the watchdog's status after its prescaler and reload are written before they
+ * count as not taken (board_guard.c). An update takes at most 5 LSI periods (RM0383 17.4.4),
+ * 0.3 ms at its slowest 17 kHz; a read and its test take 7 cycles (tests/test_board_guard.py
+ * prints the Cortex-M4 estimate; the bus only adds to it), so this waits at least 7 ms at
+ * 96 MHz, 44 ms at the 16 MHz the chip starts on. */
+#define BOARD_WATCHDOG_UPDATE_POLLS 100000u
 
 #endif /* BOARD_CONFIG_H */

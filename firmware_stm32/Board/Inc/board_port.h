@@ -42,9 +42,21 @@ void board_link_received(const uint8_t *bytes, uint32_t n);
 void board_link_transmitted(void);
 /* CDC SET_CONTROL_LINE_STATE: DTR set when a host opens the port. */
 void board_link_line_state(bool dtr);
+/* CDC SET_LINE_CODING: the bit rate the host set for its port (used by the servo set-up bridge). */
+void board_link_line_coding(uint32_t baud);
+
+/* The servo set-up bridge (servo_bridge.h), instead of the application: selected when CFG0
+ * reads closed at reset; main() then starts it and polls it for ever, feeding the watchdog.
+ * The servo supply is on while the host has the port open (DTR), LED0 lit. */
+bool board_servo_bridge_selected(void);
+void board_servo_bridge_start(void);
+void board_servo_bridge_poll(void);
 
 /* Servo supply off at once, without the HAL state machine: for Error_Handler and faults. */
 void board_servo_power_off(void);
+/* Servo supply off and both LEDs on, the three pins made outputs first (board_stop: start-up
+ * may stop before MX_GPIO_Init has run). */
+void board_stop_outputs(void);
 /* cffi:end */
 
 #ifdef __cplusplus

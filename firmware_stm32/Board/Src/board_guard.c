@@ -64,22 +64,43 @@ static void unused_interrupt(void)
     board_fault();
 }
 
+/* A vector's address without the Thumb bit. ST's start-up file makes each unused entry a
+ * .thumb_set alias of Default_Handler, so the table holds Default_Handler | 1, while
+ * Default_Handler itself is a plain label whose address C sees even. */
+static uintptr_t code_address(board_vector_t vector)
+{
+    return (uintptr_t)vector & ~(uintptr_t)1u;
+}
+
 static void vectors_to_ram(void)
 {
+    const uintptr_t unused = code_address(Default_Handler);
     for (size_t i = 0; i < BOARD_VECTORS; ++i) {
-        board_ram_vectors[i] = g_pfnVectors[i] == Default_Handler ? unused_interrupt : g_pfnVectors[i];
+        board_ram_vectors[i] = code_address(g_pfnVectors[i]) == unused ? unused_interrupt : g_pfnVectors[i];
     }
     SCB->VTOR = (uint32_t)(uintptr_t)board_ram_vectors;
     __DSB();
 }
 
-static void watchdog_start(void)
+/* Starts the watchdog with BOARD_WATCHDOG_MS, or restarts its period if it runs, as
+ * HAL_IWDG_Init does: the new prescaler and reload cross into the LSI's domain (IWDG_SR's
+ * PVU and RVU set meanwhile, RM0383 17.4.4), and only then does the reload key load the
+ * counter. False if they were not taken within BOARD_WATCHDOG_UPDATE_POLLS reads of the
+ * status: the watchdog then counts with what it had (after reset, 512 ms at 32 kHz). */
+static bool watchdog_start(void)
 {
+#ifdef DEBUG
+    __HAL_DBGMCU_FREEZE_IWDG();         /* debug builds: a debugger's halt stops its count */
+#endif
     IWDG->KR = IWDG_KEY_START;          /* starts the LSI too; cannot be stopped until reset */
     IWDG->KR = IWDG_KEY_UNLOCK;
     IWDG->PR = IWDG_PRESCALER_32;
     IWDG->RLR = BOARD_WATCHDOG_MS - 1u;
+    for (uint32_t polls = 0u; (IWDG->SR & (IWDG_SR_PVU | IWDG_SR_RVU)) != 0u;) {
+        if (++polls == BOARD_WATCHDOG_UPDATE_POLLS) return false;
+    }
     IWDG->KR = IWDG_KEY_RELOAD;
+    return true;
 }
 
 board_reset_t board_guard_start(void)
@@ -93,7 +114,9 @@ board_reset_t board_guard_start(void)
     }
     fault_record.magic = 0u;
     vectors_to_ram();
-    watchdog_start();
+    if (!watchdog_start()) {
+        Error_Handler();                /* not supervised as set: stop rather than run */
+    }
     return reset;
 }
 
@@ -107,5 +130,14 @@ void board_fault(void)
     board_servo_power_off();
     fault_record.exception = SCB->ICSR & SCB_ICSR_VECTACTIVE_Msk;
     fault_record.magic = FAULT_RECORD_MAGIC;
+    (void)watchdog_start();             /* a fault before board_guard_start ends in a reset too */
+    BOARD_HALT();
+}
+
+void board_stop(void)
+{
+    board_stop_outputs();
+    __disable_irq();
+    (void)watchdog_start();
     BOARD_HALT();
 }

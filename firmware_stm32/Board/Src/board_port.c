@@ -6,6 +6,7 @@
 #include "byte_ring.h"
 #include "cdc_link.h"
 #include "main.h"
+#include "servo_bridge.h"
 #include "usbd_cdc_if.h"
 
 /* The HAL's idea of the crystal must be the board's. */
@@ -35,6 +36,8 @@ typedef struct {
 
 static board_t board;
 static port_t port;
+static servo_bridge_t bridge;
+static volatile uint32_t host_baud;   /* the host's line coding, from the USB interrupt; 0 none yet */
 
 /* ------------------------------------------------------------------ time */
 
@@ -171,6 +174,11 @@ void board_link_line_state(bool dtr)
     cdc_link_on_line_state(&board.link, dtr);
 }
 
+void board_link_line_coding(uint32_t baud)
+{
+    host_baud = baud;
+}
+
 /* ------------------------------------------------------------------ LEDs */
 
 static void led(void *ctx, uint8_t index, bool on)
@@ -179,6 +187,23 @@ static void led(void *ctx, uint8_t index, bool on)
     const GPIO_PinState level = (BOARD_LED_ACTIVE_HIGH ? on : !on) ? GPIO_PIN_SET : GPIO_PIN_RESET;
     if (index == 0u) HAL_GPIO_WritePin(LED0_GPIO_Port, LED0_Pin, level);
     else if (index == 1u) HAL_GPIO_WritePin(LED1_GPIO_Port, LED1_Pin, level);
+}
+
+void board_stop_outputs(void)
+{
+    GPIO_InitTypeDef pin = {0};
+    board_servo_power_off();             /* the levels first, then the pins outputs, as MX_GPIO_Init */
+    led(NULL, 0u, true);
+    led(NULL, 1u, true);
+    __HAL_RCC_GPIOA_CLK_ENABLE();        /* PA8, PA5, PA6 (main.h) */
+    pin.Mode = GPIO_MODE_OUTPUT_PP;
+    pin.Speed = GPIO_SPEED_FREQ_LOW;
+    pin.Pin = SERVO_PWR_Pin;
+    pin.Pull = GPIO_PULLDOWN;
+    HAL_GPIO_Init(SERVO_PWR_GPIO_Port, &pin);
+    pin.Pin = LED0_Pin | LED1_Pin;
+    pin.Pull = GPIO_NOPULL;
+    HAL_GPIO_Init(LED0_GPIO_Port, &pin);
 }
 
 /* ------------------------------------------------------------------ IMU */
@@ -284,5 +309,47 @@ const port_t *board_port_start(void)
 
 void board_port_poll(void)
 {
+    cdc_link_pump(&board.link);
+}
+
+/* ------------------------------------------------------------------ servo set-up bridge */
+
+bool board_servo_bridge_selected(void)
+{
+    return (board_config_inputs() & 1u) != 0u;          /* CFG0 closed */
+}
+
+void board_servo_bridge_start(void)
+{
+    servo_bridge_init(&bridge);
+    led(NULL, 0u, true);
+}
+
+/* The bus at the host's bit rate: reception stopped, USART1 set up again, reception re-armed. */
+static void bridge_set_baud(uint32_t baud)
+{
+    (void)HAL_UART_AbortReceive(&huart1);
+    huart1.Init.BaudRate = baud;
+    (void)HAL_HalfDuplex_Init(&huart1);
+    servo_release_line();
+    servo_rx_arm();
+}
+
+void board_servo_bridge_poll(void)
+{
+    uint8_t buf[64];
+    const uint32_t baud = host_baud;
+    if (baud != 0u && baud != huart1.Init.BaudRate && !servo_busy(NULL)) bridge_set_baud(baud);
+    servo_power(NULL, board.link.dtr);
+    size_t n = cdc_link_read(&board.link, buf, sizeof buf);
+    for (size_t i = 0u; i < n; ++i) {
+        const size_t len = servo_bridge_feed(&bridge, buf[i]);
+        if (len == 0u) continue;
+        while (servo_busy(NULL)) {
+        }                                               /* ends: a stuck send is aborted */
+        (void)servo_send(NULL, bridge.packet, len);
+    }
+    n = servo_read(NULL, buf, sizeof buf);
+    if (n > 0u) (void)cdc_link_write(&board.link, buf, n);
     cdc_link_pump(&board.link);
 }

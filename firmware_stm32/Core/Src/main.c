@@ -110,6 +110,17 @@ int main(void)
   /* USER CODE BEGIN 2 */
   app_init(&app, board_port_start());
   const board_reset_t reset = board_guard_start();
+  if (board_servo_bridge_selected())
+  {
+    /* CFG0 closed at reset: the board is a Dynamixel adapter for setting servos up
+     * (Board/Inc/servo_bridge.h), not the arm. */
+    board_servo_bridge_start();
+    while (1)
+    {
+      board_watchdog_feed();
+      board_servo_bridge_poll();
+    }
+  }
   app.reset_cause = reset.cause;
   app.last_fault = reset.fault;
   if (HAL_TIM_Base_Start_IT(&htim3) != HAL_OK)
@@ -406,9 +417,10 @@ void HAL_TIM_PeriodElapsedCallback(TIM_HandleTypeDef *htim)
 void Error_Handler(void)
 {
   /* USER CODE BEGIN Error_Handler_Debug */
-  /* Servo supply off, then stop: the drone's computer sees the heartbeat stop. */
-  board_servo_power_off();
-  __disable_irq();
+  /* Servo supply off, both LEDs on, stop with the watchdog running (started here if start-up
+   * had not started it yet, e.g. the external clock failed): it resets the chip, which
+   * tries again. The drone's computer sees the heartbeat stop. */
+  board_stop();
   while (1)
   {
   }

@@ -106,6 +106,9 @@ static int8_t CDC_Control_FS(uint8_t cmd, uint8_t* pbuf, uint16_t length)
       {
         line_coding[i] = pbuf[i];
       }
+      /* dwDTERate, little-endian (USB CDC PSTN 6.3.10): the servo set-up bridge's bus rate */
+      board_link_line_coding((uint32_t)line_coding[0] | (uint32_t)line_coding[1] << 8
+                             | (uint32_t)line_coding[2] << 16 | (uint32_t)line_coding[3] << 24);
     break;
 
     case CDC_GET_LINE_CODING:

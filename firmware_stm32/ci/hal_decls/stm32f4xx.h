@@ -59,10 +59,10 @@ void __disable_irq(void);
 void __enable_irq(void);
 void __DSB(void);
 
-/* The reset and clock controller, the independent watchdog and the Cortex-M4 system control
- * block (only its first registers), for the board's supervision (Board/Src/board_guard.c).
- * On the chip they sit at RCC_BASE, IWDG_BASE and SCB_BASE; here they are objects, which the
- * host test double defines. */
+/* The reset and clock controller, the independent watchdog, the Cortex-M4 system control
+ * block (only its first registers) and the debug MCU block, for the board's supervision
+ * (Board/Src/board_guard.c). On the chip they sit at RCC_BASE, IWDG_BASE, SCB_BASE and
+ * DBGMCU_BASE; here they are objects, which the host test double defines. */
 typedef struct {
     __IO uint32_t CR, PLLCFGR, CFGR, CIR, AHB1RSTR, AHB2RSTR, RESERVED0[2], APB1RSTR, APB2RSTR,
                   RESERVED1[2], AHB1ENR, AHB2ENR, RESERVED2[2], APB1ENR, APB2ENR, RESERVED3[2],
@@ -79,12 +79,24 @@ typedef struct {
     __IO uint32_t ICSR, VTOR, AIRCR, SCR, CCR;
 } SCB_Type;
 
+typedef struct {
+    __IO uint32_t IDCODE, CR, APB1FZ, APB2FZ;
+} DBGMCU_TypeDef;
+
 extern RCC_TypeDef ci_rcc;
 extern IWDG_TypeDef ci_iwdg;
 extern SCB_Type ci_scb;
+extern DBGMCU_TypeDef ci_dbgmcu;
 #define RCC (&ci_rcc)
 #define IWDG (&ci_iwdg)
 #define SCB (&ci_scb)
+#define DBGMCU (&ci_dbgmcu)
+
+/* IWDG_SR: a prescaler / reload value update still on its way to the LSI domain (RM0383 17.4.4);
+ * DBGMCU_APB1_FZ: the watchdog's counter stopped while the core is halted (RM0383, DBG_IWDG_STOP) */
+#define IWDG_SR_PVU (1UL << 0)
+#define IWDG_SR_RVU (1UL << 1)
+#define DBGMCU_APB1_FZ_DBG_IWDG_STOP (1UL << 12)
 
 /* RCC_CSR reset flags (RM0383 6.3.21) and SCB_ICSR's active exception (ARMv7-M B3.2.4) */
 #define RCC_CSR_RMVF (1UL << 24)
