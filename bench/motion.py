@@ -118,12 +118,12 @@ def axis_pass(m, miss, speed=PASS_SPEED, side=PASS_SIDE, depth=PASS_DEPTH, facin
     path += [path[-1]] * round(0.4 * m.sample_rate)
     q = ffi.new("float[3]")
     assert lib.kin_ik_nearest(list(map(float, path[0])), [a, 0.5, -0.5], q) == lib.KIN_OK
-    mo = ffi.new("motion_t *")
+    mo, box = ffi.new("motion_t *"), ffi.new("float[2][3]")
     assert lib.motion_start(mo, list(q))
     goals = []
     for target in path:
         sent = list(q)
-        lib.app_next_goal(mo, list(map(float, target)), False, [sent, sent], q)   # (the shafts at their goals)
+        lib.app_next_goal(mo, list(map(float, target)), False, [sent, sent], box, q)   # (the shafts at their goals)
         goals.append(list(q))
     goals = np.array(goals)
     err = np.linalg.norm(arm_points(m, goals)[1] - np.array(path), axis=1)

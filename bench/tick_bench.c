@@ -65,6 +65,7 @@ static void build_replies(const uint16_t position[SBUS_SERVOS])
         r[5 + 3] = 0x03u;
         r[5 + 4] = (uint8_t)position[i];                      /* Present Position (36) */
         r[5 + 5] = (uint8_t)(position[i] >> 8);
+        r[5 + 10] = 120u;                                     /* Present Voltage (42): 12.0 V */
         r[sizeof replies[i] - 1] = dxl_checksum(r + 2, sizeof replies[i] - 3);
     }
 }

@@ -17,7 +17,7 @@ import pytest
 import arm_spec
 from conftest import ROOT
 from invariants import Invariants
-from simboard_tools import BusLog, make_board, ready, shaft_units, ee_of_units
+from simboard_tools import FK_TOL_MM, BusLog, make_board, ready, shaft_units, ee_of_units
 from uavarm.build import cbuild, firmware, generated
 
 HARNESS = ROOT / "tests" / "csrc"
@@ -63,7 +63,7 @@ def test_bad_ik_poses_never_reach_the_servos(bad_ik_lib, bad):
     assert inv.run_until(lambda: ready(board), 1.5) is not None
     board.send("set_position", x=TARGET[0], y=TARGET[1], z=TARGET[2])
     board.send("engage", on=1)
-    assert inv.run_until(lambda: np.linalg.norm(ee_of_units(shaft_units(board)) - TARGET) < 1.0, 3.0) is not None
+    assert inv.run_until(lambda: np.linalg.norm(ee_of_units(shaft_units(board)) - TARGET) < FK_TOL_MM, 3.0) is not None
     t_bad = board.time
     lib.bad_ik_set(BAD[bad])
     for k in range(8):

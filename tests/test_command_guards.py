@@ -145,7 +145,7 @@ q0 = [float(v) for v in sys.argv[1:4]]
 m = ffi.new("motion_t *")
 assert lib.motion_start(m, q0), "a safe pose"
 q = ffi.new("float[3]")
-lib.app_next_goal(m, ffi.NULL, False, [q0, q0], q)   # the shafts at the goal
+lib.app_next_goal(m, ffi.NULL, False, [q0, q0], ffi.new("float[2][3]"), q)   # the shafts at the goal
 print(*[repr(v) for v in q])
 """
 

@@ -16,10 +16,12 @@ one microsecond or millisecond for what is timed in them).
 | clock still for 3 ticks | test_stalled_clock_cuts_power_after_three_ticks |
 | ticks_missed, a heartbeat every 0.5 s, the fault LED | the last three tests |
 """
+import math
+
 import pytest
 
 from invariants import Invariants
-from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, ready, run_until, servo_c
+from simboard_tools import FAULT, IDS, MODEL, PARK_UNITS, BusLog, ready, run_until, servo_c, speed_register
 from test_fault_injection import TARGET, engaged_board, set_position
 from uavarm.link import llcp, messages
 from uavarm.sim import ax12_sim
@@ -228,11 +230,11 @@ def test_readings_of_two_servos_in_one_look_are_both_judged(app_lib):
 
 
 def test_the_first_reading_is_not_judged(app_lib):
-    """The first reading after a reset (1 s after it, far below its goal) has nothing to be
-    compared with: no fault, and the next ones, coming nearer at full speed, track."""
+    """The first reading after a reset (1 s after it, 70 units below its goal) has nothing to
+    be compared with: no fault, and the next ones, coming nearer at full speed, track."""
     _, lib, track, bus = tracking_watch(app_lib)
     for k in range(30):
-        assert not reading(lib, track, bus, 1_000_000 + k * TICK_US, 20 + 2 * k, goal=900, speed=100)
+        assert not reading(lib, track, bus, 1_000_000 + k * TICK_US, 20 + 2 * k, goal=90, speed=100)
 
 
 # AX-12A e-Manual: Moving Speed 0.111 rpm per unit; 1023 position units over 300 deg
@@ -242,7 +244,7 @@ UNITS_PER_S_PER_SPEED = 0.111 * 360 / 60 * 1023 / 300
 @pytest.mark.parametrize("direction", [1, -1])
 @pytest.mark.parametrize("dt_us, tracking", [(17_547, True), (17_701, False)])
 def test_tracking_needs_a_quarter_of_what_the_speed_allows(app_lib, dt_us, tracking, direction):
-    """A shaft 100 units from its goal (below it or above it) comes 1 unit nearer at each
+    """A shaft 60 units from its goal (below it or above it) comes 1 unit nearer at each
     reading, at Moving Speed 100: readings 17.547 ms apart, a quarter of what the speed allows is 0.996 units, so it
     tracks for ever; 17.701 ms apart it is 1.005 units, so it does not, and the fault stands
     after 0.25 s."""
@@ -251,8 +253,23 @@ def test_tracking_needs_a_quarter_of_what_the_speed_allows(app_lib, dt_us, track
     _, lib, track, bus = tracking_watch(app_lib)
     fault = False
     for k in range(40):
-        fault |= bool(reading(lib, track, bus, k * dt_us, 500 - direction * (100 - k), goal=500, speed=100))
+        fault |= bool(reading(lib, track, bus, k * dt_us, 500 - direction * (60 - k), goal=500, speed=100))
     assert fault == (not tracking)
+
+
+def test_a_shaft_further_behind_than_the_motion_allows_does_not_track(app_lib):
+    """Further than MODEL_SERVO_GAP_MAX from its goal (twice the model file's response lag at
+    the working speed, and a working step: servo_track.h), a shaft does not track however
+    fast it comes nearer: the fault stands after 0.25 s of such readings; nearer, the same
+    pace tracks."""
+    working = speed_register(MODEL.working_speed_rpm) * UNITS_PER_S_PER_SPEED
+    gap_max = math.ceil(working * (2 * MODEL.servo_response_lag + TICK_US * 1e-6))
+    for gap, faulty in ((gap_max + 30, True), (gap_max - 30, False)):
+        _, lib, track, bus = tracking_watch(app_lib)
+        fault = False
+        for k in range(27):   # 10 ms apart, 1 unit nearer each: 0.26 s
+            fault |= bool(reading(lib, track, bus, k * TICK_US, 500 - (gap - k), goal=500, speed=100))
+        assert fault == faulty, gap
 
 
 class ShyServo(ax12_sim.AX12):

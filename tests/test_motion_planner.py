@@ -422,10 +422,10 @@ def facing(deg, rho):
 def follow_for(q, target, ticks):
     """The goals app.c would send, tick by tick, following a fixed target from pose q."""
     m = started(q)
-    sent, q_next = FFI.new("float[3]", list(map(float, q))), FFI.new("float[3]")
+    sent, q_next, box = FFI.new("float[3]", list(map(float, q))), FFI.new("float[3]"), FFI.new("float[2][3]")
     goals = []
     for _ in range(ticks):
-        LIB.app_next_goal(m, list(map(float, target)), False, [list(sent)] * 2, q_next)   # shafts at their goals
+        LIB.app_next_goal(m, list(map(float, target)), False, [list(sent)] * 2, box, q_next)   # shafts at their goals
         sent[0:3] = list(q_next)
         goals.append(np.array(list(q_next)))
     return m, np.array(goals)

@@ -188,7 +188,7 @@ def test_from_park_every_reachable_target_gets_a_route(harness):
     targets = targets[::7]
     reachable = targets[[simboard_tools.level_ik_clear(p) for p in targets]]
     level = np.zeros((1, 2))
-    out = Out(ffi, len(reachable) * 120 + 1, len(reachable) * 600 + 1)
+    out = Out(ffi, len(reachable) * 120 + 1, len(reachable) * 1200 + 1)
     counts = [run_grid(harness, start, reachable, level, 60, PHYSICS[1], out)[3] for start in start_poses(m)]
     print(f"\n{len(reachable)} reachable targets x {len(counts)} start poses, level: {sum(counts)} refused")
     assert sum(counts) == 0

@@ -171,7 +171,9 @@ def test_jog_to_an_angle_and_by_units_at_park_speed():
     assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
     speeds = {tuple(sync_goal_speed(p.raw)[1]) for p in inv.log.syncs(t0)}
     assert speeds == {(PARK_SPEED,) * 3}
-    assert shaft_units(board)[0] == pytest.approx(PARK_UNITS[0] + 20.0 / UNIT_DEG, abs=1.0)
+    target = PARK_UNITS[0] + 20.0 / UNIT_DEG
+    # the shaft there a lag after the goals, within its compliance margin of the rounded goal
+    assert inv.run_until(lambda: abs(shaft_units(board)[0] - round(target)) <= 1.0, 0.5) is not None
     goal_before = sync_goal_speed(inv.log.syncs()[-1].raw)[0]
     board.send("jog", joint=2, mode=1, value=-25.0)
     assert inv.run_until(lambda: sync_goal_speed(inv.log.syncs()[-1].raw)[0][1] == goal_before[1] - 25, 2.0)
@@ -203,8 +205,9 @@ def test_jog_while_limp_turns_the_torque_on_and_goes_there():
     board, inv = parked()
     limp_and_turn(inv, 2, PARK_UNITS[2] + 30)
     board.send("jog", joint=3, mode=1, value=-30.0)
-    assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None
-    assert shaft_units(board)[2] == pytest.approx(PARK_UNITS[2], abs=1.5)
+    assert inv.run_until(lambda: state(board) == "jogged", 3.0) is not None   # the goals there
+    # the shaft there a lag later, within its compliance margin of the rounded goal
+    assert inv.run_until(lambda: abs(shaft_units(board)[2] - round(PARK_UNITS[2])) <= 1.0, 0.5) is not None
     assert all(s.register("torque_enable") == 1 for s in board.bus.servos)
 
 

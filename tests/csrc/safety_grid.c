@@ -128,13 +128,14 @@ static bool arm_at(app_t *app, const float start[3], float roll, float pitch)
     app->enabled = true;
     sbus_init(&app->bus, &PORT, IDS, MODEL_SERVO_BAUD);
     app->bus.state = SBUS_RUNNING;
-    for (int i = 0; i < SBUS_SERVOS; ++i) {   /* configured, read where they stand */
+    for (unsigned i = 0; i < SBUS_SERVOS; ++i) {   /* configured, read where they stand */
         sbus_servo_t *s = &app->bus.servo[i];
-        s->present_position = s->goal_sent = s->goal_before = s->pull_lo = s->pull_hi = units[i];
+        s->present_position = units[i];
         s->present_voltage = (uint8_t)lroundf(servos.volts * 10.0f);
         s->status_valid = true;
         servos.goal[i] = servos.profile[i] = servos.shaft[i] = (float)units[i];
         servos.speed[i] = 0.0f;
+        shaft_stands(app, i, start[i]);   /* (as start_motion) */
     }
     servos.reply_len = 0;
     stab_reset(&app->stab);

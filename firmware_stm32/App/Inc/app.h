@@ -19,9 +19,9 @@
  * ticks (absent, not sampling, or at full scale) or a servo stops following its goal
  * (servo_track.h); engage is refused while either stands.
  * Every goal is checked as a move from wherever the shafts may be (between each servo's
- * latest reading and the goals that may still pull it: servo_bus.h), and moves no faster
- * than the slowest servo can at the supply it reports; while a shaft is far behind its goal
- * the goals wait for it (flagged servo_lagging, with the joint).
+ * latest reading and the goals that may still pull it), and moves no faster than the
+ * slowest servo can at the supply it reports; while a shaft is far behind its goal the goals
+ * wait for it (flagged servo_lagging, with the joint).
  * The heartbeat reports the imu, imu_saturated and servo_tracking bits if they stood at
  * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
  * as they stand.
@@ -91,6 +91,12 @@ typedef struct {
     float set_position[3];         /* level frame, mm */
     bool set_on_axis;              /* ... on joint 1's axis: joint 1 holds while following */
     float q_cmd[3];                /* the joints last commanded (every move to them checked) */
+    float shafts[2][2][3];         /* where the shafts may be (rad): joint i in s[0][i]..s[1][i] of ... */
+    uint8_t shafts_now;            /* ... s = shafts[shafts_now] (the other: the next tick's) */
+    float before;                  /* the goal before q_cmd of the servo read after it was sent ... */
+    uint8_t before_servo;          /* ... that servo ... */
+    uint32_t before_syncs;         /* ... and the driver's SYNC_WRITEs before it was sent */
+    uint8_t behind;                /* bit i: servo i was read further than MODEL_SERVO_GAP_MAX from its goal */
     /* service */
     bool jog;                      /* the motion's aim is a jogged pose, not the park pose */
     uint8_t start_to;              /* APP_START_*: where motion goes when it starts */
@@ -151,8 +157,10 @@ bool app_healthy(const app_t *app);
 /* The next goal: motion.c's proposal (following target, tilted base frame, mm, unless NULL),
  * checked with kin_check_span as a move from wherever the shafts may be (joint i between
  * shafts[0][i] and shafts[1][i], rad), offered smaller while refused, the last goal again if
- * nothing passes; the speed of its step. command_servos' core. */
-motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float shafts[2][3], float q[3]);
+ * nothing passes; the speed of its step. `box`: where the shafts may be once q is sent (the
+ * span grown to hold q and MOTION_GOAL_MARGIN about it). command_servos' core. */
+motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float shafts[2][3],
+                             float box[2][3], float q[3]);
 /* The heartbeat fault bits (MSG_FAULT_*) as they stand. */
 uint16_t app_faults(const app_t *app);
 /* cffi:end */

@@ -58,7 +58,6 @@ typedef struct {
     float step_cap;                /* the most a goal may move per tick (rad) whatever its speed: what
                                       the servos can do at their supply; 0 holds (the goals wait
                                       for a shaft that fell behind). motion_start: no cap */
-    float step;                    /* the latest step's length (rad, the joint that moves most) */
     float share;                   /* the latest step's share of the way to its destination */
     uint8_t tries;                 /* smaller steps offered since (motion_smaller) */
     bool blocked;                  /* the latest goal did not move, short of the destination */

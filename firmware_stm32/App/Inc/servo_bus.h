@@ -24,13 +24,6 @@
  * supply dip resets it, torque off): one WRITE sets it up again, holding where it stands,
  * before the next READ, and it is counted (resets).
  *
- * Where a shaft can be: between its latest reading and the goals that may still pull it,
- * pull_lo..pull_hi: the goal in force when it was read, the one before (the servo's own
- * speed profile may still be on its way from it) and every goal sent since. A shaft moves
- * toward a reference that moves toward its goal, so it stays in that span as long as the
- * goals move no faster than the servo can (motion.h's step_cap); the reading itself is the
- * shaft rounded to a unit.
- *
  * Service: sbus_limp() turns the torque off (a broadcast WRITE) and back on (each servo set
  * up again, holding where it stands); sbus_read() reads a limp arm.
  *
@@ -92,9 +85,6 @@ typedef struct {
                                       checksum, overload, instruction */
     uint16_t resets;               /* readings with its torque off while running (a brown-out) */
     uint16_t eeprom_writes;        /* EEPROM registers written at configurations */
-    uint16_t goal_sent;            /* the latest goal sent (where it stood, at configuration) */
-    uint16_t goal_before;          /* the goal sent before that one */
-    uint16_t pull_lo, pull_hi;     /* the goals that may still pull its shaft (see above) */
 } sbus_servo_t;
 
 typedef struct {
@@ -166,15 +156,6 @@ void sbus_poll(sbus_t *bus);
 /* Worst-case bus time of one command: the SYNC_WRITE plus one status read that times out. */
 uint32_t sbus_tick_bus_time_us(const sbus_t *bus);
 /* cffi:end */
-
-/* Where servo s's shaft may be now (units, to the reading's rounding): between its latest
- * reading and the goals that may still pull it. */
-static inline void sbus_shaft_span(const sbus_servo_t *s, uint16_t *lo, uint16_t *hi)
-{
-    const uint16_t p = s->present_position;
-    *lo = p < s->pull_lo ? p : s->pull_lo;
-    *hi = p > s->pull_hi ? p : s->pull_hi;
-}
 
 #ifdef __cplusplus
 }

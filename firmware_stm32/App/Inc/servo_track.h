@@ -6,8 +6,8 @@
  *   it was sent and, since the servo's previous reading, it moved toward that goal by less
  *   than TRACK_MIN_PROGRESS of what its Moving Speed allows (or of the distance left);
  *   a reading further than MODEL_SERVO_GAP_MAX from its goal is "behind" (a servo slower
- *   than the motion allows for: blocked, or a supply below what it reports) and does not
- *   track either; the application holds the goals while any servo is behind;
+ *   than the motion allows for: blocked, or a supply below what it reports: the
+ *   application holds the goals while any servo is) and does not track either;
  *   the fault stands once readings have not tracked for TRACK_FAULT_US in a row, and
  *   clears once they have tracked for as long (a goal that sweeps past a stuck shaft on
  *   its way does not clear it).
@@ -41,7 +41,6 @@ typedef struct {
     uint32_t bad_us;               /* how long its readings have not tracked ... */
     uint32_t good_us;              /* ... or have, since the fault stood */
     bool have_last;
-    bool behind;                   /* its latest reading was further than MODEL_SERVO_GAP_MAX from its goal */
     bool fault;
 } track_servo_t;
 
@@ -50,16 +49,17 @@ typedef struct {
     uint32_t status_reads_seen;    /* the driver's count of all readings when last looked at */
     bool synced;                   /* each reads_seen is its servo's count as of status_reads_seen
                                       (not after track_reset(): the driver's counts go on) */
+    uint8_t fresh;                 /* bit i: servo i was read since the update before the last */
 } track_t;
 
 void track_reset(track_t *t);
-/* Looks at the readings the driver took since the last call, against the goal and speed
- * the driver last sent (call before the next command is queued). Returns track_fault(). */
+/* Looks at the readings the driver took since the last call (`fresh` says whose), against
+ * the goal and speed the driver last sent (call before the next command is queued). Returns
+ * track_fault(). */
 bool track_update(track_t *t, const sbus_t *bus, uint32_t now_us);
 /* Any servo's tracking fault standing. */
 bool track_fault(const track_t *t);
-/* Bit i set: servo i is behind (its latest reading). */
-uint8_t track_behind(const track_t *t);
+
 /* cffi:end */
 
 #ifdef __cplusplus

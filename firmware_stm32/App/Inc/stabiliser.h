@@ -52,6 +52,7 @@ typedef struct {
     float up[3];                   /* the estimate's up direction, base axes */
     float rate[3];                 /* body rate for the lead, base axes, rad/s */
     bool started;                  /* a first sample has set filters and attitude */
+    bool accel_idle;               /* the accelerometer's filter was left while the drone's messages corrected */
     uint32_t samples;              /* samples taken since the reset (saturates) */
     uint32_t last_sample_us;       /* when the previous one was taken */
     uint32_t gaps;                 /* samples more than 1.5 periods after the previous one */

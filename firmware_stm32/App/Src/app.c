@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "fastmath.h"
 #include "imu_mpu6050.h"
 #include "messages.h"
 #include "model_params.h"
@@ -406,6 +407,36 @@ static bool sample_imu(app_t *app, mpu_sample_t *out)
     return true;
 }
 
+/* ------------------------------------------------------------------ where the shafts may be */
+
+/* A reading is its shaft rounded to a unit, and a goal is rounded to a unit when sent. */
+#define ROUNDING (0.5f * MODEL_RAD_PER_UNIT)
+
+/* Servo i stands at its reading q (rad), its goal there. */
+static void shaft_stands(app_t *app, unsigned i, float q)
+{
+    app->shafts[app->shafts_now][0][i] = q - ROUNDING;
+    app->shafts[app->shafts_now][1][i] = q + ROUNDING;
+}
+
+/* Servo i read since the last tick: its shaft stands between that reading and the goals that
+ * may still pull it, the goal in force when it was read and the one before (which the
+ * servo's own speed profile may still be on its way from). A shaft moves toward a profile
+ * that moves toward its goal, so it stays there as long as the goals move no faster than the
+ * servo can (step_cap). Known for a reading taken after the latest command went out, which
+ * the tick before noted (before_*); any other reading leaves the span as it is. */
+static void shaft_read(app_t *app, unsigned i)
+{
+    static const float GAP_MAX = (float)MODEL_SERVO_GAP_MAX * MODEL_RAD_PER_UNIT;
+    const float r = servo_unit_to_joint(i, (float)app->bus.servo[i].present_position);
+    const float a = app->q_cmd[i], b = app->before;
+    const bool behind = fabsf(r - a) > GAP_MAX;   /* (servo_track.h) */
+    app->behind = (uint8_t)((app->behind & ~(1u << i)) | (unsigned)behind << i);
+    if (i != app->before_servo || app->bus.sync_writes - app->before_syncs != 1u) return;
+    app->shafts[app->shafts_now][0][i] = fm_minf(r, fm_minf(a, b)) - ROUNDING;
+    app->shafts[app->shafts_now][1][i] = fm_maxf(r, fm_maxf(a, b)) + ROUNDING;
+}
+
 /* Where the servos are, from their readings at configuration: the arm starts there and
  * parks. Until then (or if that pose is not safe to move from) nothing is commanded. */
 static bool start_motion(app_t *app)
@@ -423,6 +454,7 @@ static bool start_motion(app_t *app)
         return false;
     }
     memcpy(app->q_cmd, q, sizeof q);
+    for (unsigned i = 0; i < 3u; ++i) shaft_stands(app, i, q[i]);
     app->jog = app->start_to != APP_START_PARK;   /* (held or jogged: engage parks first) */
     const float *goal = app->start_to == APP_START_JOG ? app->jog_goal : app->start_to == APP_START_HOLD ? q : PARK;
     app->start_to = APP_START_PARK;
@@ -430,37 +462,24 @@ static bool start_motion(app_t *app)
     return true;
 }
 
-motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float shafts[2][3], float q[3])
+motion_speed_t app_next_goal(motion_t *mo, const float *target, bool pinned, const float shafts[2][3],
+                             float box[2][3], float q[3])
 {
     const motion_speed_t speed = motion_tick(mo, target, pinned, q);
     /* Last line of defence, whatever motion.c proposed: every pose between where the shafts
      * may be and the new goal, whichever way the servos take it, passes the generated
      * checks; a refused goal is tried smaller, and the arm holds (the last goal again, which
-     * the shafts were already checked on their way to) if none passes. */
-    while (kin_check_span(shafts[0], shafts[1], q, MOTION_GOAL_MARGIN) != KIN_OK) {
+     * the shafts were already checked on their way to) if none passes. The goal taken may pull
+     * the shafts from now on: they may be anywhere in the box checked. */
+    while (kin_check_span(shafts, q, MOTION_GOAL_MARGIN, box) != KIN_OK) {
         if (!motion_smaller(mo, q)) {
             memcpy(q, mo->q, 3 * sizeof q[0]);
+            memcpy(box, shafts, 6 * sizeof shafts[0][0]);
             break;
         }
     }
     motion_done(mo, q);
     return speed;
-}
-
-/* Where the shafts may be (rad): joint i between shafts[0][i] and shafts[1][i] (servo_bus.h),
- * widened by the half unit a reading rounds the shaft to. */
-static void shaft_span(const sbus_t *bus, float shafts[2][3])
-{
-    static const float ROUNDING = 0.5f * MODEL_RAD_PER_UNIT;
-    uint16_t lo[SBUS_SERVOS], hi[SBUS_SERVOS];
-    for (int i = 0; i < SBUS_SERVOS; ++i) sbus_shaft_span(&bus->servo[i], &lo[i], &hi[i]);
-    servo_units_to_joints(lo, shafts[0]);
-    servo_units_to_joints(hi, shafts[1]);
-    for (int i = 0; i < 3; ++i) {
-        const float a = shafts[0][i], b = shafts[1][i];   /* (a servo may turn its joint the other way) */
-        shafts[0][i] = (a < b ? a : b) - ROUNDING;
-        shafts[1][i] = (a < b ? b : a) + ROUNDING;
-    }
 }
 
 /* The most a goal may move per tick: what the slowest servo can do at the supply it reports
@@ -490,19 +509,28 @@ static void command_servos(app_t *app)
         return;
     }
     if (!mo->started && !start_motion(app)) return;
-    float p[3], q[3], shafts[2][3];
+    float p[3], q[3];
     uint16_t units[SBUS_SERVOS];
     const bool following = app->engaged && app->parked;
     if (following) stab_command_point(&app->stab, app->set_position, p);
-    shaft_span(&app->bus, shafts);
-    mo->step_cap = step_cap(app, track_behind(&app->track) != 0);
-    const motion_speed_t speed = app_next_goal(mo, following ? p : NULL, app->set_on_axis, shafts, q);
+    for (unsigned fresh = app->track.fresh; fresh != 0u; fresh &= fresh - 1u) {
+        shaft_read(app, (unsigned)__builtin_ctz(fresh));   /* (usually one) */
+    }
+    mo->step_cap = step_cap(app, app->behind != 0);
+    const uint8_t now = app->shafts_now;   /* (the span in one buffer, the box after this goal in the other) */
+    const motion_speed_t speed = app_next_goal(mo, following ? p : NULL, app->set_on_axis,
+                                               (const float (*)[3])app->shafts[now], app->shafts[now ^ 1u], q);
+    app->shafts_now = now ^ 1u;
     app->out_of_reach = following && mo->given_up != 0;
     if (!app->parked && mo->arrived && memcmp(mo->aim, PARK, sizeof PARK) == 0) {
         app->parked = true;
         if (app->engaged && !head_for(app, app->set_position)) app->engaged = false;   /* (flagged) */
     }
     if (!servo_joints_to_units(q, units)) return;   /* (limits and NaN, once more) */
+    /* the servo read after this command may still be pulled by its goal before it */
+    app->before_servo = app->bus.read_index;
+    app->before = app->q_cmd[app->before_servo];
+    app->before_syncs = app->bus.sync_writes;
     memcpy(app->q_cmd, q, sizeof q);
     sbus_command(&app->bus, units, SPEEDS[speed]);
 }
@@ -513,7 +541,7 @@ static void command_servos(app_t *app)
  * servo_tracking bits, on their own: the whole word is only needed at heartbeats and LEDs. */
 static void hold_faults(app_t *app, bool imu_usable_now, bool tracking_fault)
 {
-    const uint8_t behind = track_behind(&app->track);
+    const uint8_t behind = app->behind;
     if (!imu_usable_now) app->faults_since_heartbeat |= MSG_FAULT_IMU;
     if (app->imu_saturated) app->faults_since_heartbeat |= MSG_FAULT_IMU_SATURATED;
     if (tracking_fault) app->faults_since_heartbeat |= MSG_FAULT_SERVO_TRACKING;
@@ -548,6 +576,9 @@ static void watch_resets(app_t *app)
         return;
     }
     memcpy(app->q_cmd, q, sizeof q);
+    for (unsigned i = 0; i < 3u; ++i) {
+        if (app->bus.refit & (1u << i)) shaft_stands(app, i, q[i]);
+    }
     if (!motion_go(&app->motion, PARK)) app->motion_refused = true;
 }
 
@@ -592,7 +623,7 @@ uint16_t app_faults(const app_t *app)
     if (!imu_usable(app)) f |= MSG_FAULT_IMU;
     if (app->imu_saturated) f |= MSG_FAULT_IMU_SATURATED;
     if (track_fault(&app->track)) f |= MSG_FAULT_SERVO_TRACKING;
-    if (track_behind(&app->track)) f |= MSG_FAULT_SERVO_LAGGING;
+    if (app->behind) f |= MSG_FAULT_SERVO_LAGGING;
     if (app->link_lost) f |= MSG_FAULT_LINK_LOST;
     if (app->out_of_reach) f |= MSG_FAULT_OUT_OF_REACH;
     if (app->refused) f |= MSG_FAULT_COMMAND_REFUSED;
@@ -686,7 +717,7 @@ static void send_heartbeat(app_t *app)
     hb.servo3_voltage = s[2].present_voltage;
     hb.servo3_temperature = s[2].present_temperature;
     hb.servo3_load = s[2].present_load;
-    hb.lagging_joints = (uint8_t)(track_behind(&app->track) | app->lagging_since_heartbeat);
+    hb.lagging_joints = (uint8_t)(app->behind | app->lagging_since_heartbeat);
     if (send_payload(app, payload, msg_heartbeat_pack(&hb, payload, sizeof payload))) {
         app->heartbeats_sent++;
         app->faults_since_heartbeat = 0;

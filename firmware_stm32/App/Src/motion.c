@@ -263,7 +263,6 @@ motion_speed_t motion_tick(motion_t *m, const float *target, bool pinned, float 
     const float *dest = motion_destination(m);
     const float big = largest_change(m->q, dest), max_step = fm_minf(STEP[speed], m->step_cap);
     m->tries = 0;
-    m->step = max_step;
     if (big > max_step) {
         m->share = max_step / big;
         for (int i = 0; i < 3; ++i) q_next[i] = m->q[i] + m->share * (dest[i] - m->q[i]);
@@ -280,12 +279,14 @@ bool motion_smaller(motion_t *m, float q_next[3])
     const float *dest = motion_destination(m);
     const int t = m->tries++;
     float share = m->share * TRY_SHARE[t];
-    if (TRY_JOINTS[t] != 7u) {   /* the joints that move, at the speed's own step */
-        float big = 0.0f;
+    if (TRY_JOINTS[t] != 7u) {   /* the joints that move, a whole step of their own */
+        float part = 0.0f;
         for (int i = 0; i < 3; ++i) {
-            if (TRY_JOINTS[t] & (1u << i)) big = fm_maxf(big, fabsf(dest[i] - m->q[i]));
+            if (TRY_JOINTS[t] & (1u << i)) part = fm_maxf(part, fabsf(dest[i] - m->q[i]));
         }
-        share = big > m->step ? m->step / big : 1.0f;
+        /* the step was share x the largest change of all (or all of it, share 1) */
+        const float step = m->share * largest_change(m->q, dest);
+        share = m->share < 1.0f && part > step ? step / part : 1.0f;
     }
     for (int i = 0; i < 3; ++i) q_next[i] = TRY_JOINTS[t] & (1u << i) ? m->q[i] + share * (dest[i] - m->q[i]) : m->q[i];
     return true;

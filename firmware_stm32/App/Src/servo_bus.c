@@ -384,12 +384,6 @@ static uint8_t writes_needed(const sbus_t *bus, unsigned i)
 
 static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p);
 
-/* Servo s set up to hold where its latest reading puts it (configured, or set up again). */
-static void held_at_reading(sbus_servo_t *s)
-{
-    s->goal_sent = s->goal_before = s->pull_lo = s->pull_hi = s->present_position;
-}
-
 /* Per servo: read what it holds (5..43), write what differs (EEPROM wears: nothing is
  * rewritten at every enable), read it all back. A servo that does not answer the first read
  * (Status Return Level 0) gets every write. */
@@ -431,7 +425,6 @@ static void configure(sbus_t *bus)
     }
     if (how == DONE_OK && writes_needed(bus, i) == 0) {
         take_status(bus, s, bus->reply_params + (SBUS_STATUS_ADDR - SBUS_VERIFY_ADDR));
-        held_at_reading(s);
         bus->cfg_step = CFG_READ;
         bus->cfg_attempt = 0;
         if (++bus->cfg_servo == SBUS_SERVOS) enter(bus, SBUS_RUNNING);
@@ -449,15 +442,6 @@ static void configure(sbus_t *bus)
 
 /* --------------------------------------------------------------- running */
 
-/* A goal on its way to servo s: it may pull the shaft from now on. (Inlined: three per command.) */
-static inline __attribute__((always_inline)) void goal_sent(sbus_servo_t *s, uint16_t goal)
-{
-    s->goal_before = s->goal_sent;
-    s->goal_sent = goal;
-    if (goal < s->pull_lo) s->pull_lo = goal;
-    if (goal > s->pull_hi) s->pull_hi = goal;
-}
-
 /* A status reading of registers 32..43. Torque Limit back at Max Torque while running: the
  * servo lost its RAM (a brown-out), its torque is off and it goes limp; it is configured
  * again at once (refit). (An overload or overheating Shutdown sets Torque Limit to 0: the
@@ -473,10 +457,6 @@ static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_
     s->status_valid = true;
     s->failed = false;
     s->reads++;
-    /* from this reading on, what may still pull the shaft: the goal in force and the one before */
-    const bool rising = s->goal_sent > s->goal_before;
-    s->pull_lo = rising ? s->goal_before : s->goal_sent;
-    s->pull_hi = rising ? s->goal_sent : s->goal_before;
     const uint8_t *limit = p + (AX_TORQUE_LIMIT - SBUS_STATUS_ADDR);
     /* (limp: torque off on purpose; a reset then is set right when the torque comes back on) */
     if ((limit[0] | limit[1] << 8) == MAX_TORQUE && bus->state == SBUS_RUNNING && !bus->limp) {
@@ -556,7 +536,6 @@ static void run(sbus_t *bus)
         if (send(bus, bus->tx, len, REPLY_NONE)) bus->limp_pending = false;
     } else if (bus->command_pending) {
         if (send(bus, bus->sync_pkt, sync_fill(bus), REPLY_NONE)) {
-            for (int i = 0; i < SBUS_SERVOS; ++i) goal_sent(&bus->servo[i], bus->goal[i]);
             bus->command_pending = false;
             bus->read_due = true;
             bus->sync_writes++;
@@ -565,7 +544,6 @@ static void run(sbus_t *bus)
         flush_rx(bus);
         const unsigned i = (unsigned)__builtin_ctz(bus->refit);
         if (request(bus, bus->tx, build_refit(bus, &bus->servo[i]), REPLY_OPTIONAL, &bus->servo[i], 0)) {
-            held_at_reading(&bus->servo[i]);
             bus->refit &= (uint8_t)~(1u << i);
             bus->refitting = true;
             bus->refits++;

@@ -30,13 +30,6 @@ static inline __attribute__((always_inline)) bool tracks(const track_servo_t *w,
     return (float)moved >= TRACK_MIN_PROGRESS * wanted;
 }
 
-uint8_t track_behind(const track_t *t)
-{
-    uint8_t bits = 0;
-    for (int i = 0; i < SBUS_SERVOS; ++i) bits |= (uint8_t)(t->servo[i].behind << i);
-    return bits;
-}
-
 bool track_fault(const track_t *t)
 {
     for (int i = 0; i < SBUS_SERVOS; ++i) {
@@ -52,8 +45,7 @@ static inline __attribute__((always_inline)) void look_at_servo(track_t *t, cons
     const sbus_servo_t *s = &bus->servo[i];
     if (s->reads == w->reads_seen) return;
     w->reads_seen = s->reads;
-    const int32_t gap = (int32_t)bus->goal[i] - (int32_t)s->present_position;
-    w->behind = abs32(gap) > (int32_t)MODEL_SERVO_GAP_MAX;
+    t->fresh |= (uint8_t)(1u << i);
     const uint32_t dt_us = now_us - w->last_us;
     if (w->have_last) {
         if (tracks(w, s->present_position, bus->goal[i], bus->speed[i], dt_us)) {
@@ -85,6 +77,7 @@ bool track_update(track_t *t, const sbus_t *bus, uint32_t now_us)
     /* (the driver's count of all readings says whether there is any to look at) */
     const uint32_t new_reads = bus->status_reads - t->status_reads_seen;
     t->status_reads_seen = bus->status_reads;
+    t->fresh = 0;
     if (new_reads == 1u && t->synced) {
         /* the usual tick: one reading, so only the servo the driver read last has moved on
          * from the counts seen */

@@ -132,7 +132,6 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     if (!s->started) start(s, accel_g, gyro_rad_s);
     if (s->samples < UINT32_MAX) s->samples++;
     const float dt = sample_dt(s, now_us);
-    filt_accel_step3(s->accel_filter, accel_g, acc);
 #if MODEL_ESTIMATOR_QUATERNION
     if (engaged) s->still_n = 0u;   /* a window starts afresh after a flight */
     else bias_at_rest(s, accel_g, gyro_rad_s);
@@ -140,11 +139,19 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     const bool aided = stab_velocity_fresh(s, now_us);
     if (stab_link_fresh(s, now_us) || aided) {
         est_quat_propagate(&s->quat, gyro_rad_s, dt, s->up);   /* the drone's messages correct */
-    } else if (engaged) {
-        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
-                      dt, s->up);
+        s->accel_idle = true;   /* (the filtered accelerometer is not used meanwhile) */
     } else {
-        est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, dt, s->up);
+        if (s->accel_idle) {    /* its filter starts again at rest on this sample */
+            for (int i = 0; i < 3; ++i) filt_accel_reset(&s->accel_filter[i], accel_g[i]);
+            s->accel_idle = false;
+        }
+        filt_accel_step3(s->accel_filter, accel_g, acc);
+        if (engaged) {
+            est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ACCEL_GAIN, MODEL_EST_BIAS_GAIN, MODEL_EST_INNOVATION_SCALE,
+                          dt, s->up);
+        } else {
+            est_quat_step(&s->quat, acc, gyro_rad_s, MODEL_EST_ALIGN_ACCEL_GAIN, MODEL_EST_ALIGN_BIAS_GAIN, 0.0f, dt, s->up);
+        }
     }
     memcpy(s->rate, s->quat.rate, sizeof s->rate);
     /* the raw specific force: the chip's DLPF is filter enough for an integral */
@@ -154,6 +161,7 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     static const float no_bias[3] = { 0.0f, 0.0f, 0.0f };
     float gyro[3];
     (void)engaged;
+    filt_accel_step3(s->accel_filter, accel_g, acc);
     for (int i = 0; i < 3; ++i) gyro[i] = filt_gyro_step(&s->gyro_filter[i], gyro_rad_s[i]);
     est_complementary_step(&s->attitude, acc, gyro, dt);
     est_attitude_up(&s->attitude, s->up);
