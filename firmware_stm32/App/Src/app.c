@@ -58,6 +58,13 @@ static void show_state(const app_t *app)
     app->port->led(app->port->ctx, 1, app_faults(app) != 0);
 }
 
+/* The shafts watched afresh (tracking, behind): the readings before say nothing now. */
+static void watch_afresh(app_t *app)
+{
+    track_reset(&app->track);
+    app->behind = 0;
+}
+
 static void set_enabled(app_t *app, bool on)
 {
     if (on == app->enabled) return;
@@ -73,7 +80,7 @@ static void set_enabled(app_t *app, bool on)
         app->servo_reset = false;
         app->timing_fault = false;
     }
-    track_reset(&app->track);   /* readings from before a power cycle say nothing */
+    watch_afresh(app);   /* readings from before a power cycle say nothing */
     sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
     show_state(app);
 }
@@ -148,7 +155,7 @@ static void torque_on(app_t *app, uint8_t start_to)
 {
     sbus_limp(&app->bus, false);
     app->start_to = start_to;
-    track_reset(&app->track);
+    watch_afresh(app);
 }
 
 static void on_torque(app_t *app, bool on)
@@ -165,7 +172,7 @@ static void on_torque(app_t *app, bool on)
             sbus_limp(&app->bus, true);
             app->motion.started = false;   /* moved by hand: starts again from the readings */
             app->parked = app->jog = false;
-            track_reset(&app->track);
+            watch_afresh(app);
         }
     }
 }
