@@ -361,6 +361,39 @@ def test_pinned_and_held_targets_keep_joint_1():
     assert m.aim[0] == pytest.approx(expect[0], abs=TOL_RAD)
 
 
+@pytest.mark.parametrize("rho, held", [(0.97, True), (1.03, False)], ids=["inside the release radius", "past it"])
+def test_a_held_joint_1_is_released_only_past_the_release_radius(rho, held):
+    """Once a target has come within axis_hold_radius (joint 1 held), it must go out past
+    axis_release_radius, not only past the hold radius, before joint 1 follows it again:
+    a target taken 90 deg round to `rho` x the release radius (beyond the hold radius)."""
+    hold, release = MODEL.motion.axis_hold_radius, MODEL.motion.axis_release_radius
+    assert hold < rho * release
+    q = np.radians([10.0, 40.0, -60.0])
+    m = started(q)
+    tick(m, round_axis(10.0, 0.5 * hold, -150.0))
+    assert m.aim[0] == pytest.approx(q[0], abs=1e-6)
+    out = round_axis(100.0, rho * release, -150.0)
+    tick(m, out)
+    expect, *_ = branch_ik(MODEL, out, q, -1.0, hold=held)
+    assert m.aim[0] == pytest.approx(expect[0], abs=TOL_RAD)
+    assert held == (m.aim[0] == pytest.approx(q[0], abs=1e-6))
+
+
+def test_a_target_shaken_about_the_hold_radius_does_not_chatter_joint_1():
+    """A target 2 % either side of axis_hold_radius, alternately 60 deg either way round the
+    axis (noise on a set position near the axis): joint 1 is held from the first time it
+    comes within the hold radius and never turns again."""
+    hold = MODEL.motion.axis_hold_radius
+    q = np.radians([0.0, 40.0, -60.0])
+    m = started(q)
+    aims = []
+    for k in range(40):
+        tick(m, round_axis(60.0 if k % 2 else -60.0, hold * (1.02 if k % 2 else 0.98), -150.0))
+        aims.append(m.aim[0])
+    assert aims == [aims[0]] * len(aims), np.degrees(aims[:6])
+    assert aims[0] == pytest.approx(q[0], abs=1e-6)     # the first target was inside: held at once
+
+
 def _step_rad(rpm):
     """One tick's step (rad) at a speed, as the servo's Moving Speed register can express it."""
     return speed_register(rpm) * RPM_PER_SPEED_UNIT * 2 * math.pi / 60 / MODEL.sample_rate
