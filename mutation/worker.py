@@ -119,6 +119,7 @@ class Worker:
         return self._timeouts[target.name]
 
     def run(self, target: Target, mutant: Mutant) -> Outcome:
+        timeout = self.timeout_for(target)      # (on the unmutated copy: before the mutant is made)
         path = self.dir / mutant.path
         original = path.read_text()
         t0 = time.monotonic()
@@ -136,7 +137,6 @@ class Worker:
             build = self._run(["-c", BUILD_CHECK], 600)
             if build.returncode != 0:
                 return Outcome("stillborn", time.monotonic() - t0, "does not compile")
-            timeout = self.timeout_for(target)
             try:
                 res = self._run(self._test_args(target), timeout)
             except subprocess.TimeoutExpired:

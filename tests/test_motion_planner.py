@@ -503,6 +503,21 @@ def test_a_target_crossing_a_legs_sector_is_aimed_edge_inside_edge_without_dithe
     assert len(shaken) == 1 and shaken != {LIB.MOTION_LEG_NONE}, shaken
 
 
+def test_a_target_pulled_inside_the_leg_distance_is_no_longer_aimed_for_a_leg():
+    """Aimed at a sector's edge (104 mm out, 3 deg into the sector), the target is pulled in
+    to 95 mm: no leg is in the way of the aim any more (MOTION_LEG_NONE), and the arm aims
+    at the target itself."""
+    rho = 104.0
+    m = started(facing(LEG - HW - 5.0, rho))
+    for deg in np.arange(-14.0, -HW + 3.5, 0.5):
+        tick(m, round_axis(LEG + deg, rho, DEPTH))
+    assert m.leg_aim == LIB.MOTION_LEG_EDGE
+    inside = round_axis(LEG - HW + 3.0, 95.0, DEPTH)
+    tick(m, inside)
+    assert m.leg_aim == LIB.MOTION_LEG_NONE
+    np.testing.assert_allclose(ee(list(m.aim)), inside, atol=TOL_MM)
+
+
 @pytest.mark.parametrize("rho", [99.2, 99.4], ids=lambda r: f"{r:.1f} mm out")
 def test_a_target_in_a_legs_sector_the_arm_may_reach_is_reached(rho):
     """Just inside the leg distance (the goal's margins clear of it), 5 deg into a leg's
