@@ -18,8 +18,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from conftest import sympy_at_30_digits
-from uavarm.build import firmware, generated
-from uavarm.codegen import generate
+from uavarm.build import firmware, variants
 from uavarm.model import attitude, config, quaternion
 
 MODEL = config.load()
@@ -30,17 +29,11 @@ EPS32 = float(np.finfo(np.float32).eps)
 
 # ---------------------------------------------------------------- builds
 
-def variant_build(tmp_path_factory, name, edits):
-    """(model, ffi, lib) of the firmware generated from the committed model with edits."""
-    text = config.DEFAULT_MODEL.read_text()
-    for old, new in edits.items():
-        assert old in text, old
-        text = text.replace(old, new, 1)
-    folder = tmp_path_factory.mktemp(name)
-    (folder / "manipulator.toml").write_text(text)
-    assert generate.main(["--model", str(folder / "manipulator.toml"), "--out", str(folder / "gen")]) == 0
-    ffi, lib = firmware.load(folder / "gen")
-    return config.load(folder / "manipulator.toml"), ffi, lib
+def variant_build(changes):
+    """(model, ffi, lib) of the firmware of the committed model with keys edited (generated
+    once per test run for all workers: uavarm.build.variants)."""
+    v = variants.build(changes)
+    return v.model, v.ffi, v.lib
 
 
 @pytest.fixture(scope="module")
@@ -49,14 +42,13 @@ def fw():
 
 
 # A second build: another mount offset, lead and link delay, and a tight accelerometer gate.
-OFFSET_LEAD = {"offset = [0.0, 0.0, -80.0]": "offset = [12.0, -25.0, -60.0]", "lead_time = 0.04": "lead_time = 0.06",
-               "link_delay_min = 0.015": "link_delay_min = 0.06", "accel_reject_deg = 90.0": "accel_reject_deg = 3.0",
-               "accel_gain = 0.5": "accel_gain = 0.2", "bias_gain = 0.1": "bias_gain = 0.005"}
+OFFSET_LEAD = {"mount.offset": [12.0, -25.0, -60.0], "estimator.lead_time": 0.06, "estimator.link_delay_min": 0.06,
+               "estimator.accel_reject_deg": 3.0, "estimator.accel_gain": 0.2, "estimator.bias_gain": 0.005}
 
 
 @pytest.fixture(scope="module")
-def offset_lead(tmp_path_factory):
-    return variant_build(tmp_path_factory, "offset_lead", OFFSET_LEAD)
+def offset_lead():
+    return variant_build(OFFSET_LEAD)
 
 
 def test_committed_model_is_what_these_tests_assume():
@@ -526,10 +518,10 @@ def test_the_gyro_bias_is_clamped_at_gyro_bias_max(fw, offset_dps):
 
 
 @pytest.fixture(scope="module")
-def short_delay(tmp_path_factory):
+def short_delay():
     """A link faster than a tick: each message measured after the last IMU sample, so the
     estimate at its time is extrapolated along the rate."""
-    return variant_build(tmp_path_factory, "short_delay", {"link_delay_min = 0.015": "link_delay_min = 0.002"})
+    return variant_build({"estimator.link_delay_min": 0.002})
 
 
 @pytest.mark.parametrize("which", ["committed", "offset_lead", "short_delay"])
@@ -805,7 +797,6 @@ def test_each_configuration_builds_and_stabilises_on_simboard(name):
     sys.path.insert(0, str(Path(__file__).parent))
     import oracles
     from simboard_tools import BusLog, pose_ok, sync_goal_speed
-    from uavarm.build import variants
     from uavarm.sim.board import Rocking, SimBoard
 
     v = variants.build(CONFIGS[name])

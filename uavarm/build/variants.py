@@ -185,14 +185,24 @@ def _values(model: config.Model) -> str:
 def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Variant:
     """Generate and build the firmware of the edited model, cached by its values: edits that
     leave the committed model's values as they are take the committed build (generated/)."""
+    model, gen_dir = generate(changes, base)
+    if gen_dir == firmware.generated.GENERATED:
+        ffi, lib = firmware.default()
+    else:
+        ffi, lib = firmware.load(gen_dir)
+    return Variant(model, ffi, lib, dict(changes), gen_dir)
+
+
+def generate(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> tuple[config.Model, Path]:
+    """(the edited model, the folder of its generated code), generated once for its values
+    (generated/ itself for the committed model's)."""
     if Path(base) == config.DEFAULT_MODEL and (not changes or _values(model_of(changes)) == _values(config.load())):
         model = config.load(base)
         firmware.generated.check_current(model)     # generated/ is this model's (make codegen)
-        ffi, lib = firmware.default()
-        return Variant(model, ffi, lib, dict(changes), firmware.generated.GENERATED)
+        return model, firmware.generated.GENERATED
     text = edited_text(changes, base)
-    from ..codegen import generate   # imports SymPy: only when a variant is really built
-    digest = hashlib.sha256((_values(model_of(changes, base)) + generate._templates_digest()).encode()).hexdigest()[:16]
+    from ..codegen import generate as codegen   # imports SymPy: only when a variant is really built
+    digest = hashlib.sha256((_values(model_of(changes, base)) + codegen._templates_digest()).encode()).hexdigest()[:16]
     out = SIM_BUILD / digest
     model_path = out / "manipulator.toml"
     gen_dir = out / "generated"
@@ -202,10 +212,9 @@ def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Vari
             out.mkdir(parents=True, exist_ok=True)
             model_path.write_text(text)
             try:
-                files = generate.render(model_path)
+                files = codegen.render(model_path)
             except config.ModelError as exc:
                 raise VariantError(str(exc)) from None
-            generate.write(files, gen_dir)
+            codegen.write(files, gen_dir)
             stamp.write_text("".join(f"{k} = {_toml_value(v)}\n" for k, v in changes.items()))
-    ffi, lib = firmware.load(gen_dir)
-    return Variant(config.load(model_path), ffi, lib, dict(changes), gen_dir)
+    return config.load(model_path), gen_dir
