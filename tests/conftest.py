@@ -32,7 +32,7 @@ def sympy_at_30_digits(exprs):
     import mpmath as mp
     import sympy as sp
     syms = sorted(set().union(*(sp.sympify(e).free_symbols for e in exprs)), key=str)
-    f = sp.lambdify(syms, exprs, modules="mpmath")
+    f = sp.lambdify(syms, exprs, modules="mpmath", cse=True)   # (shared subexpressions once: same values)
 
     def evaluate(subs):
         with mp.workdps(30):
