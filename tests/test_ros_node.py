@@ -197,10 +197,14 @@ class Arm:
 
     def wait_status(self, cond, sim_seconds):
         """The first status after now with cond(status), or None once the board's simulated
-        clock has run sim_seconds (and a hang guard: ten times that in real time, and 30 s)."""
+        clock has run sim_seconds (a hang guard fails the test after ten times that in real
+        time, and 30 s: a board that stopped would otherwise seem to hold whatever it held)."""
         end = self.sitl.board.time + sim_seconds
         deadline = time.monotonic() + 10 * sim_seconds / SPEED + 30
-        while self.sitl.board.time < end and time.monotonic() < deadline:
+        while self.sitl.board.time < end:
+            if time.monotonic() > deadline:
+                pytest.fail(f"the SITL's board did not run {sim_seconds} s in {10 * sim_seconds / SPEED + 30:.0f} s "
+                            "of real time: it stalled")
             try:
                 status = self.statuses.get(timeout=0.5)
             except queue.Empty:
