@@ -21,6 +21,7 @@ import sympy as sp
 
 from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo, swept, velocity
 from . import approx, board_ioc
+from .remember import remembered
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -75,6 +76,7 @@ def _function(outputs, symbols, c_names, prefix="t", **trig):
     return {"lines": pre + temps + assigns, "ops": op_count(exprs)}
 
 
+@remembered
 def kinematics_context(m: config.Model):
     q = kinematics.JOINT_SYMBOLS
     # kin_check_joints' sine and cosine skip fm_sincosf's range test after the limits test
@@ -197,6 +199,7 @@ def _ik_nearest(m, ikm, checks_of, target_symbols):
     }
 
 
+@remembered
 def filters_context(m: config.Model):
     out = {}
     for name, sections in filters.sensor_filters(m).items():
@@ -226,6 +229,7 @@ def servo_context(m: config.Model):
             "check_limits": _function([("const bool limits_ok", kinematics.joint_limits_ok(m, q))], q, Q)}
 
 
+@remembered
 def estimator_context(m: config.Model):
     acc, gyro, p = (attitude.ACC, attitude.GYRO, attitude.P_LEVEL)
     acc_c = [f"acc[{i}]" for i in range(3)]

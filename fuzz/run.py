@@ -190,12 +190,14 @@ def _env() -> dict:
 
 
 def fuzz(name: str, *, seconds: float | None = None, runs: int | None = None, workers: int = 1,
-         extra: tuple[str, ...] = ()) -> Result:
+         extra: tuple[str, ...] = (), work: Path | None = None) -> Result:
     """Run one harness for `seconds` and/or `runs` inputs (per worker). workers > 1: that
     many fuzzer processes side by side on the same corpus folder (each picks up what the
-    others add, libFuzzer -reload); their inputs are added up, coverage is the best one's."""
+    others add, libFuzzer -reload); their inputs are added up, coverage is the best one's.
+    work: the folder new inputs go to and earlier runs' are read from (default
+    build/fuzz/corpus/<name>)."""
     cmd = command(name)
-    work = OUT / "corpus" / name
+    work = work if work is not None else OUT / "corpus" / name
     artifacts = OUT / "artifacts" / name
     logs = OUT / "logs"
     for d in (work, artifacts, logs):

@@ -14,7 +14,7 @@ from .catalogue import ROOT, file_digest, target_mutants
 from .remap import remap
 from .results import Results, equivalents
 from .targets import TARGETS
-from .worker import Worker
+from .worker import TestsFail, Worker
 
 BASE = ROOT / "build" / "mutate"
 
@@ -30,7 +30,7 @@ def chosen(args):
     return targets, work
 
 
-def run_all(work, results: Results, jobs: int, timeout: float, again: str = "") -> None:
+def run_all(work, results: Results, jobs: int, timeout: float | None, again: str = "") -> None:
     """Runs each mutant of `work` without a result (again="survivors": also the survivors;
     again="all": every one)."""
     todo: queue.Queue = queue.Queue()
@@ -51,7 +51,11 @@ def run_all(work, results: Results, jobs: int, timeout: float, again: str = "") 
                 target, mu, digest = todo.get_nowait()
             except queue.Empty:
                 return
-            out = worker.run(target, mu)
+            try:
+                out = worker.run(target, mu)
+            except TestsFail as exc:
+                print(f"error: {exc}", flush=True)
+                return
             results.add({"id": mu.id, "digest": digest, "target": target.name, "status": out.status,
                          "seconds": round(out.seconds, 1), "detail": out.detail})
             print(f"[{next(counter)}/{total}] {out.status:9} {out.seconds:5.1f} s  {mu.id}", flush=True)
@@ -65,30 +69,42 @@ def run_all(work, results: Results, jobs: int, timeout: float, again: str = "") 
 
 def score_table(targets, work, results: Results) -> str:
     eq = equivalents()
-    rows = ["| target | mutants run (of) | killed | survived | equivalent | not compiled | score |",
-            "|---|---:|---:|---:|---:|---:|---:|"]
-    survivors = []
-    sums = [0] * 5
+    rows = ["| target | mutants run (of) | killed | survived | timed out | equivalent | not compiled | score |",
+            "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    survivors, hung = [], []
+    sums = [0] * 6
     for t in targets:
         everything = [results.get(mu.id, d) for tt, mu, d in work if tt is t]
         recs = [r for r in everything if r is not None]
-        killed = sum(r["status"] == "killed" for r in recs)
+        killed = sum(r["status"] == "killed" and not timed_out(r) for r in recs)
         equivalent = sum(r["status"] == "same_code" or (r["status"] == "survived" and r["id"] in eq) for r in recs)
         survived = [r for r in recs if r["status"] == "survived" and r["id"] not in eq]
+        timeouts = [r for r in recs if timed_out(r)]
         stillborn = sum(r["status"] == "stillborn" for r in recs)
         judged = killed + len(survived)
         score = f"{100 * killed / judged:.1f} %" if judged else "-"
-        rows.append(f"| {t.name} | {len(recs)} ({len(everything)}) | {killed} | {len(survived)} | {equivalent} | {stillborn} | {score} |")
-        for k, v in enumerate((len(recs), killed, len(survived), equivalent, stillborn)):
+        rows.append(f"| {t.name} | {len(recs)} ({len(everything)}) | {killed} | {len(survived)} | {len(timeouts)} | "
+                    f"{equivalent} | {stillborn} | {score} |")
+        for k, v in enumerate((len(recs), killed, len(survived), len(timeouts), equivalent, stillborn)):
             sums[k] += v
         survivors += [r["id"] for r in survived]
+        hung += [r["id"] for r in timeouts]
     judged = sums[1] + sums[2]
-    rows.append(f"| **all** | {sums[0]} | {sums[1]} | {sums[2]} | {sums[3]} | {sums[4]} | "
-                f"{100 * sums[1] / judged:.1f} % |" if judged else "| **all** | 0 | | | | | - |")
+    rows.append(f"| **all** | {sums[0]} | {sums[1]} | {sums[2]} | {sums[3]} | {sums[4]} | {sums[5]} | "
+                f"{100 * sums[1] / judged:.1f} % |" if judged else "| **all** | 0 | | | | | | - |")
     text = "\n".join(rows)
     if survivors:
         text += "\n\nSurvivors not in mutation/equivalent.toml:\n" + "\n".join(f"  {s}" for s in survivors)
+    if hung:
+        text += ("\n\nTimed out (not in the score: a test that hangs on them, or a machine too busy; run "
+                 "them again alone):\n" + "\n".join(f"  {s}" for s in hung))
     return text
+
+
+def timed_out(rec: dict) -> bool:
+    """A mutant whose tests were still running at the timeout (results from before timeouts
+    were told apart: killed with a timeout as the reason)."""
+    return rec["status"] == "timeout" or (rec["status"] == "killed" and rec.get("detail", "").startswith("timeout"))
 
 
 def main(argv=None) -> int:
@@ -99,7 +115,9 @@ def main(argv=None) -> int:
     ap.add_argument("--offset", type=int, default=0, help="which of the K (with --every)")
     ap.add_argument("--only", help="run only mutants whose id contains this text")
     ap.add_argument("--results", type=Path, default=BASE / "results.jsonl")
-    ap.add_argument("--timeout", type=float, default=300.0, help="seconds before a mutant's test run counts as a hang")
+    ap.add_argument("--timeout", type=float, default=None,
+                    help="seconds before a mutant's test run counts as hung (default: 10 x the target's tests on "
+                         "the unmutated tree, measured first, at least 60)")
     ap.add_argument("--again", choices=("survivors", "all"), default="",
                     help="run the survivors (after the tests were strengthened), or all chosen, again")
     ap.add_argument("--list", action="store_true", help="list the mutants and stop")

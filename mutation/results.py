@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 EQUIVALENT = Path(__file__).with_name("equivalent.toml")
-FINAL = ("killed", "survived", "stillborn", "same_code")
+FINAL = ("killed", "survived", "timeout", "stillborn", "same_code")
 
 
 class Results:

@@ -25,9 +25,18 @@ BUILD_CHECK = ("from uavarm.build import firmware, generated; generated.load(); 
 
 @dataclass
 class Outcome:
-    status: str        # killed | survived | stillborn | same_code
+    status: str        # killed | survived | timeout | stillborn | same_code
     seconds: float
     detail: str = ""
+
+
+# A mutant's tests may take this many times the unmutated run's before they count as hung.
+TIMEOUT_FACTOR = 10
+TIMEOUT_MIN_S = 60.0
+
+
+class TestsFail(RuntimeError):
+    """A target's tests fail on the unmutated tree: no mutant of it can be judged."""
 
 
 def tree_files(root: Path = ROOT) -> list[str]:
@@ -40,7 +49,7 @@ class Worker:
     """Takes the first of base/w0, w1, ... that no other worker (of this run or another)
     holds, and holds it while it lives."""
 
-    def __init__(self, base: Path, timeout: float):
+    def __init__(self, base: Path, timeout: float | None):
         for k in itertools.count():
             self.dir = base / f"w{k}"
             self.dir.mkdir(parents=True, exist_ok=True)
@@ -50,7 +59,8 @@ class Worker:
                 break
             except BlockingIOError:
                 self._lock.close()
-        self.timeout = timeout
+        self.timeout = timeout          # None: TIMEOUT_FACTOR x each target's unmutated run
+        self._timeouts: dict[str, float] = {}
         self.env = dict(os.environ, PYTHONPATH=str(self.dir), PYTHONDONTWRITEBYTECODE="1")
         self.env.pop("CI", None)
 
@@ -87,7 +97,29 @@ class Worker:
         gen = self.dir / "generated"
         return all(body((gen / n).read_bytes()) == body(d) for n, d in self._generated.items())
 
+    def _test_args(self, target: Target) -> list[str]:
+        args = ["-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *target.tests]
+        return args + [f"--deselect={t}" for t in FRESHNESS_TESTS]
+
+    def timeout_for(self, target: Target) -> float:
+        """The seconds a mutant's test run may take: the fixed --timeout, or TIMEOUT_FACTOR
+        times the target's tests on the unmutated copy (run once per worker and target,
+        when the machine is as busy as it is for the mutants), at least TIMEOUT_MIN_S."""
+        if self.timeout is not None:
+            return self.timeout
+        if target.name not in self._timeouts:
+            t0 = time.monotonic()
+            res = self._run(self._test_args(target), None)
+            took = time.monotonic() - t0
+            if res.returncode != 0:
+                raise TestsFail(f"{target.name}: the tests fail without a mutant:\n{res.stdout[-2000:]}")
+            self._timeouts[target.name] = max(TIMEOUT_MIN_S, TIMEOUT_FACTOR * took)
+            print(f"{target.name}: unmutated tests {took:.0f} s, a mutant's may take "
+                  f"{self._timeouts[target.name]:.0f} s", flush=True)
+        return self._timeouts[target.name]
+
     def run(self, target: Target, mutant: Mutant) -> Outcome:
+        timeout = self.timeout_for(target)      # (on the unmutated copy: before the mutant is made)
         path = self.dir / mutant.path
         original = path.read_text()
         t0 = time.monotonic()
@@ -105,12 +137,11 @@ class Worker:
             build = self._run(["-c", BUILD_CHECK], 600)
             if build.returncode != 0:
                 return Outcome("stillborn", time.monotonic() - t0, "does not compile")
-            args = ["-m", "pytest", "-q", "-x", "-p", "no:cacheprovider", *target.tests]
-            args += [f"--deselect={t}" for t in FRESHNESS_TESTS]
             try:
-                res = self._run(args, self.timeout)
+                res = self._run(self._test_args(target), timeout)
             except subprocess.TimeoutExpired:
-                return Outcome("killed", time.monotonic() - t0, f"timeout ({self.timeout:.0f} s)")
+                # a hang the suite would show only as a run that never ends: not counted as killed
+                return Outcome("timeout", time.monotonic() - t0, f"tests still running after {timeout:.0f} s")
             if res.returncode == 0:
                 return Outcome("survived", time.monotonic() - t0)
             if res.returncode == 1:

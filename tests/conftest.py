@@ -4,6 +4,7 @@ import signal
 import socket
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -31,7 +32,7 @@ def sympy_at_30_digits(exprs):
     import mpmath as mp
     import sympy as sp
     syms = sorted(set().union(*(sp.sympify(e).free_symbols for e in exprs)), key=str)
-    f = sp.lambdify(syms, exprs, modules="mpmath")
+    f = sp.lambdify(syms, exprs, modules="mpmath", cse=True)   # (shared subexpressions once: same values)
 
     def evaluate(subs):
         with mp.workdps(30):
@@ -142,6 +143,18 @@ def pytest_report_header(config):
 
 def pytest_terminal_summary(terminalreporter, config):
     terminalreporter.write_line(pytest_report_header(config))
+
+
+def wait_simulated(sitl, seconds: float, until=lambda: False) -> bool:
+    """Wait until until() holds or the SITL's board has run `seconds` of simulated time (its
+    clock, not the wall's: a busy machine slows both alike); until()'s last value. The SITL's
+    clock raises if the board stops moving, so this never hangs."""
+    end = sitl.clock() + seconds
+    while not until():
+        if sitl.clock() >= end:
+            return bool(until())
+        time.sleep(0.002)        # (a poll's interval)
+    return True
 
 
 def free_port() -> int:

@@ -1,6 +1,7 @@
 """The node's core without ROS (uavarm.link.arm_core: what a ROS 2 adapter would wrap): a
 SITL's board driven through it, its loop in a thread as the node runs it, its log and
-statuses collected.
+statuses collected. The core and the drone's messages keep the SITL's clock (simulated
+time), so their timeouts and the board's agree however busy the machine.
 
 Oracles: the heartbeat's written fields and units (mm and ms on the wire, m and s out), the
 board's own counters (the SITL's app state), the documented refusal and fault names."""
@@ -11,12 +12,13 @@ import time
 
 import pytest
 
+from conftest import wait_simulated
 from uavarm.link import messages
 from uavarm.link.arm_core import ArmCore, status_of
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
-pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
 
 SPEED = 2.0
 
@@ -40,18 +42,17 @@ class Log:
 
 @pytest.fixture
 def core():
-    """An ArmCore on a SITL's port, its loop stepping at 100 Hz in a thread."""
-    sitl = Sitl(speed=SPEED)
-    threading.Thread(target=sitl.run, daemon=True).start()
+    """An ArmCore on a SITL's port and clock, its loop stepping every 10 ms in a thread."""
+    sitl = Sitl(speed=SPEED).start()
     log, statuses = Log(), []
-    c = ArmCore(sitl.device, 115200, log, statuses.append)
-    c.open(time.monotonic())
+    c = ArmCore(sitl.device, 115200, log, statuses.append, clock=sitl.clock)
+    c.open(sitl.clock())
     stop = threading.Event()
 
     def loop():
         while not stop.is_set():
-            c.step(time.monotonic())
-            time.sleep(0.01)
+            c.step(sitl.clock())
+            time.sleep(0.01)     # (the loop's pace, as the node's timer)
     threading.Thread(target=loop, daemon=True).start()
     yield c, sitl, log, statuses
     stop.set()
@@ -86,28 +87,28 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     assert c.engage(True)[0]
     assert statuses and statuses[-1]["set_position"] == pytest.approx([0.060, 0.020, -0.120], abs=1e-6)
     before = sitl.board.app.drone_attitudes
-    c.attitude(0.01, -0.02, None, time.monotonic())
-    time.sleep(0.1)
-    assert sitl.board.app.drone_attitudes > before                      # forwarded while fresh
+    c.attitude(0.01, -0.02, None, sitl.clock())
+    assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_attitudes > before)   # forwarded while fresh
     assert ("info", f"arm: forwarding the drone's attitude from {c.attitude_topic} to the board") in log.lines
     mark = len(log.lines)
     for _ in range(10):                                                 # kept fresh, no velocity
-        c.attitude(0.01, -0.02, None, time.monotonic())
-        time.sleep(0.02)
+        c.attitude(0.01, -0.02, None, sitl.clock())
+        wait_simulated(sitl, 0.04)
     assert not [text for _, text in log.lines[mark:] if "no attitude" in text]
     before = sitl.board.app.drone_velocities
-    c.velocity((0.5, -0.25, 0.0), None, time.monotonic())
-    time.sleep(0.1)                                                     # several loop steps
+    c.velocity((0.5, -0.25, 0.0), None, sitl.clock())
+    assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_velocities > before)
+    wait_simulated(sitl, 0.1)                                           # several loop steps more
     assert sitl.board.app.drone_velocities == before + 1                # each measurement once
     assert ("info", f"arm: forwarding the drone's velocity from {c.attitude_topic} to the board") in log.lines
     assert c.velocity_source == "drone"                                 # (what the next status says)
-    c.velocity((0.5, -0.25, 0.0), None, time.monotonic() - 1.0)         # stale when it came
-    time.sleep(0.3)
+    c.velocity((0.5, -0.25, 0.0), None, sitl.clock() - 1.0)             # stale when it came
+    wait_simulated(sitl, 0.3)
     assert sitl.board.app.drone_velocities == before + 1
     assert c.velocity_source == "none"
     assert ("warn", f"arm: no velocity on {c.attitude_topic} for 0.20 s: the board goes on without it") in log.lines
     # none fresh: the core keeps the engaged arm alive past the board's silence timeout
-    time.sleep(2 * config.load().link_silence_timeout / SPEED + 0.5)
+    wait_simulated(sitl, 2 * config.load().link_silence_timeout + 1.0)
     assert statuses[-1]["engaged"] and statuses[-1]["attitude_source"] == "imu"
     ok, text = c.set_position(5.0, 0.0, 0.0)
     assert not ok and "unreachable" in text and "(board figures in mm)" in text

@@ -1,7 +1,9 @@
 """IMU calibrations, end to end as a user runs them: `uavarm.calibrate` over the link to a
 simulated board behind a pseudo-terminal (the SITL), whose IMU has errors the model file
 does not know (its "hardware truth"). The user's part (turning the board, pressing Enter,
-answering yes) is played by callbacks that move the simulated board.
+answering yes) is played by callbacks that move the simulated board. The link and the user
+both keep the SITL's clock (simulated time): a hand turns the board over simulated seconds
+and the calibration samples simulated seconds, however busy the machine.
 
 Oracles: the simulated sensor's own drawn errors (bias, scale, gyro offset) and the mounting
 it was given, and synthetic readings built from a known bias and scale.
@@ -13,13 +15,13 @@ import math
 import shutil
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from conftest import wait_simulated
 from uavarm import calibrate
 from uavarm.calibrate import fit, guide
 from uavarm.calibrate.fit import CalibrationError, Window
@@ -29,10 +31,10 @@ from uavarm.sim.board import Gravity, Rocking, Turning
 from uavarm.sim.imu_model import Mpu6050Sensor
 from uavarm.sim.sitl import Sitl
 
-pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
 
-SPEED = 2.0                        # simulated seconds per real second
-SECONDS = 1.0                      # real seconds of samples per position (2 simulated)
+SPEED = 2.0                        # simulated seconds per real second (when the machine keeps up)
+SECONDS = 2.0                      # simulated seconds of samples per position
 # (roll, pitch) that put each IMU axis up, then down (IMU axes = base axes here)
 SIX = [(0.0, 0.0), (math.pi, 0.0), (0.0, -math.pi / 2), (0.0, math.pi / 2), (math.pi / 2, 0.0), (-math.pi / 2, 0.0)]
 
@@ -268,17 +270,16 @@ def model_copy(tmp_path):
 
 
 def run_sitl(**board_options):
-    s = Sitl(speed=SPEED, **board_options)
-    threading.Thread(target=s.run, daemon=True).start()
-    return s
+    return Sitl(speed=SPEED, **board_options).start()
 
 
 @contextlib.contextmanager
 def sitl_link(**board_options):
-    """A SITL running in a thread and a link to it that has seen a heartbeat: (sitl, arm)."""
+    """A SITL running in a thread and a link to it on its clock that has seen a heartbeat:
+    (sitl, arm)."""
     s = run_sitl(**board_options)
     try:
-        with ArmLink(s.device) as arm:
+        with ArmLink(s.device, clock=s.clock) as arm:
             arm.next_heartbeat()
             yield s, arm
     finally:
@@ -290,14 +291,15 @@ def sensor(profile="datasheet", seed=1):
     return Mpu6050Sensor(profile, seed=seed, vibration_from=math.inf)
 
 
-def turning(sitl, orientations, hold=0.15):
-    """The user: at each prompt, the board turned to the next orientation and held still."""
+def turning(sitl, orientations, hold=0.3):
+    """The user: at each prompt, the board turned to the next orientation and held still
+    `hold` simulated seconds before pressing Enter."""
     it = iter(orientations)
 
     def ask(text):
         roll, pitch = next(it)
         sitl.board.motion = Gravity(roll, pitch)
-        time.sleep(hold)
+        wait_simulated(sitl, hold)
     return ask
 
 
@@ -307,9 +309,10 @@ HAND_TURNS = [(0, 0, 0), (180, 8, -5), (4, 90, 6), (-6, 5, 180), (3, -4, 90), (1
 TURN_SECONDS = 1.5                 # simulated
 
 
-def turning_by_hand(sitl, turns=HAND_TURNS, hold=0.15):
+def turning_by_hand(sitl, turns=HAND_TURNS, hold=0.3):
     """The user: at each prompt, the board turned smoothly over the next of `turns` from
-    where it is (the gyro sees it), then held still."""
+    where it is (the gyro sees it), then held still `hold` (simulated seconds) before
+    pressing Enter."""
     it = iter(turns)
     where = {"R": np.eye(3)}
 
@@ -317,7 +320,7 @@ def turning_by_hand(sitl, turns=HAND_TURNS, hold=0.15):
         motion = Turning(where["R"], np.radians(next(it)), sitl.board.time, TURN_SECONDS)
         sitl.board.motion = motion
         where["R"] = motion.end()
-        time.sleep(TURN_SECONDS / SPEED + hold)
+        wait_simulated(sitl, TURN_SECONDS + hold)
     return ask
 
 
@@ -423,14 +426,15 @@ TRUTH_DIRECTION = [1, -1, 1]       # joint 2's servo mounted the other way round
 
 
 def enabled_sitl(**board_options):
-    """A SITL (board_options: the hardware as it is) and a link to it, the arm enabled and parked."""
+    """A SITL (board_options: the hardware as it is) and a link to it on its clock, the arm
+    enabled and parked."""
     s = run_sitl(**board_options)
-    arm = ArmLink(s.device)
+    arm = ArmLink(s.device, clock=s.clock)
     arm.enable()
     parked = [name for name, _ in messages.STATES].index("parked")
-    end = time.monotonic() + 10
+    end = s.clock() + 10
     while arm.next_heartbeat()["state"] != parked:
-        assert time.monotonic() < end, "the arm did not park"
+        assert s.clock() < end, "the arm did not park"
     return s, arm
 
 
@@ -441,14 +445,14 @@ def test_servo_calibration_finds_each_zero_and_direction(model_copy):
     def hold_at_zero(text):
         for servo, units in zip(shafts, TRUTH_ZERO):
             servo.turn_by_hand(units)
-        time.sleep(0.1)
+        wait_simulated(s, 0.2)
 
     def user(question):
         if question.startswith("Did joint"):
             j = int(question.split()[2]) - 1
-            end = time.monotonic() + 5.0
-            while abs(shafts[j].position - TRUTH_ZERO[j]) < guide.JOG_UNITS / 2 and time.monotonic() < end:
-                time.sleep(0.01)                      # the user answers once the joint has moved
+            end = s.clock() + 10.0
+            while abs(shafts[j].position - TRUTH_ZERO[j]) < guide.JOG_UNITS / 2 and s.clock() < end:
+                time.sleep(0.01)                      # (polls) the user answers once the joint has moved
             return (shafts[j].position - TRUTH_ZERO[j]) * TRUTH_DIRECTION[j] > 0   # what the user sees
         return True
     try:
@@ -467,7 +471,7 @@ def test_servo_calibration_with_a_servo_unplugged_names_it(model_copy):
     s.board.bus.servos = s.board.bus.servos[:2]                  # joint 3's cable pulled
     try:
         with pytest.raises(CalibrationError, match=r"no readings from the servo of joint\(s\) \[3\]"):
-            calibrate.servos(arm, model_copy, lambda text: time.sleep(0.1), lambda q: True, seconds=SECONDS)
+            calibrate.servos(arm, model_copy, lambda text: wait_simulated(s, 0.2), lambda q: True, seconds=SECONDS)
     finally:
         arm.close()
         s.stop()

@@ -8,7 +8,6 @@ servos' own time constant (their motion model, apart from the firmware and the f
 from __future__ import annotations
 
 import math
-import threading
 
 import numpy as np
 import pytest
@@ -22,7 +21,7 @@ from uavarm.sim.sitl import Sitl
 
 from test_calibrate import enabled_sitl
 
-pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
 
 SPEED = 2.0                        # simulated seconds per real second
 UNITS_PER_S = 180.0                # a goal ramp about the park speed's
@@ -112,11 +111,10 @@ def test_lag_calibration_with_a_servo_unplugged_names_it_and_writes_nothing(mode
 
 
 def test_lag_calibration_refuses_an_arm_not_enabled(model_copy):
-    s = Sitl(speed=SPEED)
-    threading.Thread(target=s.run, daemon=True).start()
+    s = Sitl(speed=SPEED).start()
     before = model_copy.read_bytes()
     try:
-        with ArmLink(s.device) as arm:
+        with ArmLink(s.device, clock=s.clock) as arm:
             with pytest.raises(CalibrationError, match="must be enabled and not engaged"):
                 guide.lag(arm, model_copy, lambda text: None, lambda q: True)
     finally:

@@ -7,7 +7,6 @@ apart from the firmware's answer); delays drawn here (the fit's truth); the SITL
 """
 from __future__ import annotations
 
-import threading
 
 import numpy as np
 import pytest
@@ -20,7 +19,7 @@ from uavarm.link import ArmLink
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
-pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
 
 
 # ---------------------------------------------------------------- the board's answer
@@ -87,10 +86,10 @@ def test_the_fit_refuses_a_link_that_drops_pings():
 # ---------------------------------------------------------------- through the SITL
 
 def sitl_arm(up, down, arm_class=ArmLink):
-    """A SITL in real time (its link delays are the truth to recover in this computer's time)."""
-    s = Sitl(speed=1.0, link_delay=(up, down))
-    threading.Thread(target=s.run, daemon=True).start()
-    return s, arm_class(s.device)
+    """A SITL in real time and a link on its clock: the link delays it adds (simulated time)
+    are the truth the calibration measures, however busy the machine."""
+    s = Sitl(speed=1.0, link_delay=(up, down)).start()
+    return s, arm_class(s.device, clock=s.clock)
 
 
 @pytest.mark.parametrize("up, down", [(0.010, 0.010), (0.012, 0.004)])

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -21,7 +20,7 @@ import pytest
 from conftest import ROOT, SYSTEM_ENV, catkin_workspace, free_port, stop_group
 from uavarm.sim.sitl import Sitl
 
-pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
 
 PACKAGE = ROOT / "ros" / "uavarm_ros"
 CLEAN_ENV = SYSTEM_ENV
@@ -63,8 +62,7 @@ def launched(workspace, tmp_path_factory):
     home = tmp_path_factory.mktemp("ros_home")
     env = dict(CLEAN_ENV, ROS_MASTER_URI=f"http://127.0.0.1:{free_port()}", ROS_HOME=str(home),
                ROS_LOG_DIR=str(home / "log"), ROS_IP="127.0.0.1", PYTHONUNBUFFERED="1")
-    sitl = Sitl(speed=1.0)
-    threading.Thread(target=sitl.run, daemon=True).start()
+    sitl = Sitl(speed=1.0).start()
     port = env["ROS_MASTER_URI"].rsplit(":", 1)[1]
     procs = []
     try:
@@ -95,7 +93,7 @@ def in_workspace(ws, command: str, env=None, wait_for: str | None = None, until_
         done = (wait_for is None or wait_for in out.stdout) and (not until_ok or out.returncode == 0)
         if done or time.monotonic() > end:
             return out
-        time.sleep(1.0)
+        time.sleep(1.0)          # (asks again until the node answers; 60 s: a hang guard)
 
 
 def test_the_workspace_alone_brings_the_arm_up(launched):

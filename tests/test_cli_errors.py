@@ -6,7 +6,6 @@ import os
 import subprocess
 import sys
 import termios
-import threading
 import time
 import tomllib
 import tty
@@ -107,16 +106,13 @@ def test_user_errors_are_one_line_without_a_traceback(argv, busy_port):
 @pytest.mark.realtime
 def test_port_vanishing_during_monitor():
     """The SITL stops (as a board unplugged) while `monitor` is printing its heartbeats."""
-    sitl = Sitl(speed=2.0)
-    thread = threading.Thread(target=sitl.run, daemon=True)
-    thread.start()
+    sitl = Sitl(speed=2.0).start()
     proc = uavarm("link", sitl.device, "monitor")
     try:
         first = proc.stdout.readline()
         assert first.startswith("#"), first      # a heartbeat: the link works
     finally:
         sitl.stop()
-        thread.join(timeout=10)
     out, err = finished(proc)
     assert_clean_error(proc, out, err)
     assert sitl.device in err
@@ -141,7 +137,7 @@ def test_port_vanishing_during_goto():
     proc = uavarm("link", device, "goto", "60", "20", "-120")
     try:
         while device not in fds_of(proc.pid) and proc.poll() is None:
-            time.sleep(0.001)      # until the command has the port open
+            time.sleep(0.001)      # until the command has the port open (an event, not a time)
     finally:
         os.close(master)
         os.close(slave)

@@ -50,6 +50,22 @@ def test_output_is_deterministic(tmp_path):
     assert {p.name: p.read_text() for p in tmp_path.iterdir()} == generate.render()
 
 
+def test_contexts_remembered_from_another_model_render_what_a_fresh_process_does(tmp_path):
+    """render() remembers the kinematics, filters and estimator contexts by the model values
+    each read (codegen/remember.py): after the committed model, a model with another
+    accelerometer filter (its kinematics and estimator taken from memory, its filters not)
+    renders in this process exactly what a fresh process writes for it."""
+    from uavarm.build import variants
+    render_uncached()
+    path = tmp_path / "manipulator.toml"
+    path.write_text(variants.edited_text({"filters.accel.cutoff": 15.0}))
+    here = render_uncached(path)
+    out = tmp_path / "fresh"
+    subprocess.run([sys.executable, "-m", "uavarm.codegen", "--model", str(path), "--out", str(out)], check=True,
+                   capture_output=True)
+    assert here == {p.name: p.read_text() for p in out.iterdir()}
+
+
 def test_headers_say_where_they_came_from(model):
     for path in GENERATED.iterdir():
         head = path.read_text()[:600]

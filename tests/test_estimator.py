@@ -22,9 +22,8 @@ from hypothesis import HealthCheck, example, given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
 from conftest import ROOT
-from uavarm.build import generated
-from uavarm.codegen import generate
-from uavarm.model import attitude, config
+from uavarm.build import generated, variants
+from uavarm.model import attitude
 
 EPS32 = float(np.finfo(np.float32).eps)   # 1.19e-7: one float32 step at 1.0
 TILT_TOL_URAD = 1.0       # ~8 float32 steps at 1 rad: atan2 (~1-2 ulp), input rounding, mounting sums
@@ -34,12 +33,10 @@ COS_PITCH_MIN = 0.01      # model/attitude.py: the Euler kinematics divide by ma
 
 _RANDOM_RPY = np.random.default_rng(2024).uniform(-180, 180, 3).round(1)
 VARIANTS = {
-    "committed": None,
-    "random_mount": {"mounting_rpy = [0.0, 0.0, 0.0]":
-                     f"mounting_rpy = [{', '.join(str(float(a)) for a in _RANDOM_RPY)}]",
-                     "sample_rate = 100.0": "sample_rate = 200.0",
-                     "complementary_gyro_weight = 0.95": "complementary_gyro_weight = 0.9"},
-    "upside_down": {"mounting_rpy = [0.0, 0.0, 0.0]": "mounting_rpy = [180.0, 0.0, 90.0]"},
+    "committed": {},
+    "random_mount": {"imu.mounting_rpy": [float(a) for a in _RANDOM_RPY], "imu.sample_rate": 200.0,
+                     "estimator.complementary_gyro_weight": 0.9},
+    "upside_down": {"imu.mounting_rpy": [180.0, 0.0, 90.0]},
 }
 
 
@@ -102,20 +99,12 @@ def f32(v):
 
 
 @pytest.fixture(scope="module", params=list(VARIANTS))
-def build(request, tmp_path_factory):
-    edits = VARIANTS[request.param]
-    if edits is None:
-        ffi, lib = generated.default()
-        return Build(config.load(), ffi, lib)
-    text = config.DEFAULT_MODEL.read_text()
-    for old, new in edits.items():
-        assert old in text, old
-        text = text.replace(old, new, 1)
-    folder = tmp_path_factory.mktemp(request.param)
-    (folder / "manipulator.toml").write_text(text)
-    assert generate.main(["--model", str(folder / "manipulator.toml"), "--out", str(folder / "gen")]) == 0
-    ffi, lib = generated.load(folder / "gen")
-    return Build(config.load(folder / "manipulator.toml"), ffi, lib)
+def build(request):
+    """The generated code of the model with the variant's keys edited (generated once per test
+    run for all workers: uavarm.build.variants)."""
+    model, gen_dir = variants.generate(VARIANTS[request.param])
+    ffi, lib = generated.default() if gen_dir == generated.GENERATED else generated.load(gen_dir)
+    return Build(model, ffi, lib)
 
 
 def test_scipy_conventions_are_the_textbook_ones():

@@ -14,6 +14,7 @@ one microsecond or millisecond for what is timed in them).
 | a servo read unanswered after one retry | test_servo_timeout_after_one_retry |
 | tick late: no tick for 1.5 periods | test_late_tick_is_run_from_the_clock_at_one_and_a_half_periods |
 | clock still for 3 ticks | test_stalled_clock_cuts_power_after_three_ticks |
+| the watchdog fed only while healthy: a tick within two periods, the clock moving | test_the_watchdog_is_fed_only_while_ticks_run_and_the_clock_moves, test_a_stalled_clock_starves_the_watchdog |
 | ticks_missed, a heartbeat every 0.5 s, the fault LED | the last three tests |
 """
 import math
@@ -38,6 +39,7 @@ TRACK_FAULT_US = 250_000
 SERVO_READ_RETRIES = 1
 TICK_LATE_US = 15_000            # 1.5 periods
 CLOCK_STALL_TICKS = 3
+WATCHDOG_US = 250_000            # the independent watchdog's period (docs/board-project.md)
 
 
 def step_until(board, cond, limit_s, dt_us=None):
@@ -368,6 +370,59 @@ def test_stalled_clock_cuts_power_after_three_ticks():
     ticks = board.app.ticks_run
     assert step_until(board, lambda: not board.servo_power, 0.2) is not None
     assert board.app.ticks_run - ticks == 1 + CLOCK_STALL_TICKS
+
+
+class Watchdog:
+    """The board's main loop as main() runs it: the independent watchdog (its own clock, the
+    simulated time here) fed after every pass in which app_healthy() says the loop is
+    healthy; `starved` is the longest time it went unfed."""
+
+    def __init__(self, board):
+        self.board, self.fed_at, self.starved = board, board.now_us, 0
+
+    def step(self, dt_us):
+        self.board.step(dt_us)
+        if self.board.lib.app_healthy(self.board.app):
+            self.fed_at = self.board.now_us
+        self.starved = max(self.starved, self.board.now_us - self.fed_at)
+
+    def run(self, seconds):
+        for _ in range(round(seconds * 1e6 / self.board.poll_us)):
+            self.step(self.board.poll_us)
+
+
+def test_the_watchdog_is_fed_only_while_ticks_run_and_the_clock_moves():
+    """An engaged board is healthy at every main-loop pass for 2 s; then the loop's last tick
+    is two periods old at the clock (the clock read after a tick moved on by hand, no pass
+    run between): healthy one microsecond before, not at two periods."""
+    board, _ = engaged_board()
+    dog = Watchdog(board)
+    dog.run(2.0)
+    assert dog.starved <= board.poll_us
+    last, now = board.app.last_tick_us, board.hp.now_us
+    board.hp.now_us = (last + 2 * TICK_US - 1) & 0xFFFFFFFF
+    assert board.lib.app_healthy(board.app)
+    board.hp.now_us = (last + 2 * TICK_US) & 0xFFFFFFFF
+    assert not board.lib.app_healthy(board.app)
+    board.hp.now_us = now
+
+
+def test_a_stalled_clock_starves_the_watchdog():
+    """The microsecond clock stops: from the first tick that sees it still, the loop is not
+    healthy, so the watchdog goes unfed and resets the chip (fed, it would keep a board
+    whose every timeout has stopped)."""
+    board, _ = engaged_board()
+    dog = Watchdog(board)
+    dog.run(0.1)
+    board.clock_frozen = True
+    board.step(TICK_US // 2)
+    dog.fed_at = board.now_us
+    ticks = board.app.ticks_run
+    dog.run(0.2 + TICK_US / 1e6)
+    assert board.app.ticks_run - ticks >= 1
+    assert board.now_us - dog.fed_at >= 0.2e6, "fed while the clock stood still"
+    dog.run(WATCHDOG_US / 1e6)
+    assert dog.starved > WATCHDOG_US
 
 
 # ---------------------------------------------------------------- counters, heartbeat, LEDs

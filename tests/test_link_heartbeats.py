@@ -5,7 +5,7 @@ queued."""
 import pytest
 
 from uavarm.link import llcp, messages
-from uavarm.link import ArmLink, CommandRefused, HeartbeatAge
+from uavarm.link import ArmLink, CommandRefused, HeartbeatAge, LinkGarbled, LinkLate, LinkSilent
 from uavarm.model import config
 
 PERIOD = config.load().heartbeat_period
@@ -100,3 +100,62 @@ def test_sequence_and_uptime_wrap_are_not_restarts():
     age.fresh([{"seq": 0xFFFF, "uptime_ms": 0xFFFF_FF00}], now=10.0)
     kept = age.fresh([{"seq": 0, "uptime_ms": 0x0000_00F4}], now=10.5)
     assert (age.lost, age.restarts, len(kept)) == (0, 0, 1)
+
+
+class Clock:
+    """This computer's clock for a client under test: it moves `step` s at every reading, so
+    a wait of N s takes N / step readings and no real time."""
+
+    def __init__(self, step=0.01):
+        self.t, self.step = 100.0, step
+
+    def __call__(self):
+        self.t += self.step
+        return self.t
+
+
+class SlowBoard(QueuedPort):
+    """A port on a board whose clock runs at `rate` times ours (a simulated board behind
+    real time): a heartbeat every period of its time, readable as soon as it is sent."""
+
+    def __init__(self, clock, rate):
+        super().__init__()
+        self.clock, self.rate, self.start, self.sent = clock, rate, clock.t, 0
+
+    def read(self, n):
+        board_s = (self.clock.t - self.start) * self.rate
+        if board_s < (self.sent + 1) * PERIOD:
+            return b""
+        self.sent += 1
+        return heartbeat(self.sent, round(self.sent * PERIOD * 1000))
+
+
+def test_a_board_whose_clock_runs_slow_is_not_late_while_the_port_is_read():
+    """A board whose clock runs at 0.4 times this computer's (a simulated board behind real
+    time on a busy machine), its port read every 20 ms: its clock says each heartbeat comes
+    later than the one before, but none can have waited longer than since the last read:
+    every one is fresh."""
+    clock = Clock()
+    arm = ArmLink(SlowBoard(clock, rate=0.4), clock=clock)
+    seqs = [arm.next_heartbeat()["seq"] for _ in range(12)]
+    assert seqs == list(range(1, 13)) and arm.age.stale == 0
+
+
+def test_late_heartbeats_are_told_from_garbled_bytes_and_silence():
+    """The same board's port read only every 0.8 s: its heartbeats, older than a period by
+    then, come but none is trusted; the client says so (LinkLate, how late), not "wrong baud
+    or device" (bytes that are no frame) nor "no heartbeat" (nothing at all)."""
+    clock = Clock(step=0.4)                  # two readings a poll
+    arm = ArmLink(SlowBoard(clock, rate=0.4), clock=clock, silence=3.0)
+    arm.next_heartbeat()
+    with pytest.raises(LinkLate, match=r"heartbeat\(s\) in 3\.0 s but each too late to trust \(the last "
+                                       r"[\d.]+ s old, more than a 0.5 s period\): this computer reads the port "
+                                       r"too seldom"):
+        for _ in range(10):
+            arm.next_heartbeat()
+    assert arm.age.stale >= 1
+    with pytest.raises(LinkGarbled, match="no valid heartbeat.*wrong baud or device"):
+        ArmLink(QueuedPort(b"hello, this is not LLCP " * 4), clock=Clock()).next_heartbeat()
+    with pytest.raises(LinkSilent, match="no heartbeat for 1.5 s: is the board powered") as silent:
+        ArmLink(QueuedPort(), clock=Clock()).next_heartbeat()
+    assert type(silent.value) is LinkSilent

@@ -1,10 +1,13 @@
 """The drone side: the link client and the command line against the simulated board behind a
-pseudo-terminal (SITL), as they would talk to the real board's USB serial port."""
+pseudo-terminal (SITL), as they would talk to the real board's USB serial port. The client
+keeps the SITL's clock (simulated time), so a busy machine that slows the board slows the
+client's timeouts alike; the command line, a process of its own, keeps the wall clock and is
+given only what waits for heartbeats, not for a time."""
 import math
 import os
+import re
 import subprocess
 import sys
-import threading
 import time
 import tty
 
@@ -17,7 +20,7 @@ from uavarm.link import ArmLink, CommandRefused, LinkGarbled, LinkSilent, PortNo
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
 
-pytestmark = pytest.mark.realtime   # a simulated board on the wall clock: run apart (Makefile)
+pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
 
 SPEED = 2.0          # simulated seconds per real second
 TARGET = (60.0, 20.0, -120.0)
@@ -25,12 +28,14 @@ TARGET = (60.0, 20.0, -120.0)
 
 @pytest.fixture
 def sitl():
-    s = Sitl(speed=SPEED)
-    thread = threading.Thread(target=s.run, daemon=True)
-    thread.start()
+    s = Sitl(speed=SPEED).start()
     yield s
     s.stop()
-    thread.join(timeout=5)
+
+
+def link(sitl):
+    """A link client on the SITL's port, keeping its clock."""
+    return ArmLink(sitl.device, clock=sitl.clock)
 
 
 def wait_for(sitl, arm, cond, sim_seconds):
@@ -66,7 +71,7 @@ def test_silent_and_garbled_links_are_told_apart():
             with pytest.raises(LinkSilent, match="no heartbeat"):
                 arm.next_heartbeat()
             os.write(master, b"hello, this is not LLCP " * 4 + b"b05ZZ")
-            with pytest.raises(LinkGarbled, match="no valid fresh heartbeat"):
+            with pytest.raises(LinkGarbled, match="no valid heartbeat.*wrong baud or device"):
                 arm.next_heartbeat()
     finally:
         os.close(master)
@@ -76,7 +81,7 @@ def test_silent_and_garbled_links_are_told_apart():
 def test_commands_through_the_pseudo_terminal(sitl):
     m = config.load()
     park = np.array(m.park_deg)
-    with ArmLink(sitl.device) as arm:
+    with link(sitl) as arm:
         hb = arm.status()
         assert hb["enabled"] == 0 and hb["engaged"] == 0 and hb["fault_names"] == []
 
@@ -107,7 +112,7 @@ def test_commands_through_the_pseudo_terminal(sitl):
 
 def test_link_cut_parks_the_arm_and_is_reported(sitl):
     m = config.load()
-    with ArmLink(sitl.device) as arm:
+    with link(sitl) as arm:
         arm.enable()
         arm.engage()
         # the drone stops sending: after link.silence_timeout the board parks and says why
@@ -127,38 +132,57 @@ def test_command_line_against_the_sitl(sitl):
     assert out.returncode == 1 and "unreachable" in out.stderr
 
 
-def test_sitl_speaks_llcp_only():
+def test_sitl_speaks_llcp_only(sitl):
     """What comes out of the pseudo-terminal is exactly the LLCP frames the board sent."""
-    s = Sitl(speed=SPEED)
-    thread = threading.Thread(target=s.run, daemon=True)
-    thread.start()
-    try:
-        fd = os.open(s.device, os.O_RDWR | os.O_NOCTTY)
-        data = b""
-        end = time.monotonic() + 1.2 / SPEED + 2.0
-        while time.monotonic() < end and data.count(b"b") < 2:
-            data += os.read(fd, 4096)
-        os.close(fd)
-    finally:
-        s.stop()
-        thread.join(timeout=5)
+    fd = os.open(sitl.device, os.O_RDWR | os.O_NOCTTY)
+    data = b""
+    end = sitl.clock() + 1.2
+    while sitl.clock() < end:
+        data += os.read(fd, 4096)
+    os.close(fd)
     frames = llcp.Decoder().feed(data, 0.0)
     assert len(frames) >= 2 and data.startswith(b"b") and len(data) == sum(llcp.frame_size(len(f)) for f in frames)
 
 
 def test_attitude_feed_keeps_an_engaged_arm_engaged(sitl):
     m = config.load()
-    with ArmLink(sitl.device) as arm:
+    with link(sitl) as arm:
         arm.enable()
         arm.engage()
-        end, sent = sitl.board.time + 2 * m.link_silence_timeout, 0
-        while sitl.board.time < end:
+        end, sent = sitl.clock() + 2 * m.link_silence_timeout, 0
+        while sitl.clock() < end:
             arm.send_attitude(0.01, -0.02)
             sent += 1
-            time.sleep(0.02 / SPEED)      # about 50 Hz of simulated time
+            due = sitl.clock() + 0.02                 # 50 Hz of simulated time
+            while sitl.clock() < due:
+                time.sleep(0.001)                     # (a poll's interval: the SITL's clock paces)
         hb = arm.status()
         assert hb["engaged"] == 1 and "link_lost" not in hb["fault_names"]
         assert sitl.board.app.drone_attitudes == sent     # every frame arrived whole
+
+
+def test_a_sitl_behind_real_time_says_so_and_a_client_on_its_clock_does_not_mind(monkeypatch):
+    """Asked for 50 times real time, more than any machine runs it: the SITL reports how far
+    behind real time it is; a client keeping its clock gets its fresh heartbeats and its
+    commands confirmed all the same. Asked for a speed it can keep, it says it caught up."""
+    from uavarm.sim import sitl as sitl_module
+    monkeypatch.setattr(sitl_module, "LAG_REPORT_S", 0.2)
+    told = []
+    s = Sitl(speed=50.0, warn=told.append).start()
+    try:
+        with link(s) as arm:
+            assert arm.enable()["enabled"] == 1
+            assert arm.status()["enabled"] == 1 and arm.age.stale == 0
+        assert re.fullmatch(r"sitl: the simulated board is \d+\.\d\d s behind real time \(speed 50x asked\): "
+                            r"the machine is too busy; its heartbeats come late", told[0]), told
+        assert s.max_lag > sitl_module.LAG_WARN_S
+        s.speed = 1e-3
+        end = time.monotonic() + 30
+        while not told[-1].startswith("sitl: the simulated board has caught up"):
+            assert time.monotonic() < end, told       # (a hang guard: it takes 0.2 s)
+            time.sleep(0.05)                          # (until the report comes)
+    finally:
+        s.stop()
 
 
 @pytest.mark.parametrize("text, kind", [("level", "Gravity"), ("tilt:10,-5", "Gravity"), ("rock:10,5,0.5", "Rocking")])

@@ -314,6 +314,82 @@ def test_swept_check_is_not_vacuous(model, gen):
     assert tried > 300
 
 
+def clear_of_body_and_legs(model, q):
+    """Plain geometry's body and leg verdicts for any joint angles (the promised box may
+    reach past a joint limit: its bound holds there too, and the limits are checked on the
+    goals)."""
+    from dataclasses import replace
+    free = replace(model, limits=[replace(l, min_deg=-720.0, max_deg=720.0) for l in model.limits])
+    return oracles.check_pose(free, q)[0] == 0
+
+
+GRID = 9                       # poses per joint across each promised box: 9 x 9 x 9 = 729
+
+
+def near_the_body_plane(model, rng, n):
+    """Poses inside the limits whose elbow or end effector is 0 to 6 mm below the body plane."""
+    lo, hi = limits(model)
+    out = []
+    while len(out) < n:
+        q = rng.uniform(lo, hi, (4000, 3))
+        _, elbow, tip = oracles.arm_points(model, q)
+        gap = model.body_z - np.maximum(elbow[:, 2], tip[:, 2])
+        out += list(q[(gap > 0) & (gap < 6.0)])
+    return out[:n]
+
+
+@pytest.mark.parametrize("check", ["kin_check_swept", "kin_check_move"])
+def test_the_swept_bound_is_never_below_the_moves_true_extent(model, gen, check):
+    """The bound's promise, against dense sampling: moves from poses drawn near every
+    boundary (the leg sectors' edges and the leg distance, the joint limits, the body plane;
+    half of them with the elbow or the end effector 0 to 6 mm below the body plane),
+    one, two or all three joints turning at once, by 0.05 to 15 deg each (a tick's step and
+    a route's pieces); kin_check_move with no margin and with the planner's 0.0035 rad.
+    Whenever the check says KIN_OK, every pose of a 9 x 9 x 9 grid over the box it promises
+    clear (about b, half-widths max(|b - a|, margin)), and 40 random poses in it, are clear
+    of body and legs by plain geometry."""
+    ffi, lib = gen
+    rng = np.random.default_rng(RNG_SEED + 10 + (check == "kin_check_move"))
+    lo, hi = limits(model)
+    n_moves, accepted, sampled = 6000, {1: 0, 2: 0, 3: 0}, 0
+    near = {"body": 0, "legs": 0}
+    u = np.linspace(-1.0, 1.0, GRID)
+    grid = np.stack(np.meshgrid(u, u, u, indexing="ij"), axis=-1).reshape(-1, 3)
+    starts = [(a_lo + a_hi) / 2 for a_lo, a_hi in near_boundary_boxes(model, rng, n_moves // 2)]
+    for a in starts + near_the_body_plane(model, rng, n_moves - len(starts)):
+        a = np.clip(a, lo, hi)
+        turning = rng.choice(3, size=rng.integers(1, 4), replace=False)
+        d = np.zeros(3)
+        d[turning] = rng.choice([-1, 1], len(turning)) * np.exp(rng.uniform(math.log(0.05), math.log(15.0), len(turning))) * DEG
+        b = a + d
+        margin = 0.0 if check == "kin_check_swept" or rng.integers(2) else 0.0035
+        if check == "kin_check_swept":
+            status = lib.kin_check_swept(_f3(ffi, a), _f3(ffi, b))
+        else:
+            status = lib.kin_check_move(_f3(ffi, a), _f3(ffi, b), margin)
+        if status != lib.KIN_OK:
+            continue
+        # the goals as the C saw them (float32), and the box about b it promises
+        a32, b32 = np.float32(a).astype(float), np.float32(b).astype(float)
+        h = np.maximum(np.abs(b32 - a32), margin)
+        poses = np.vstack([b32 + grid * h, b32 + rng.uniform(-1, 1, (40, 3)) * h])
+        ok = clear_of_body_and_legs(model, poses)
+        assert ok.all(), (check, a, b, margin, poses[~ok][:3])
+        accepted[len(turning)] += 1
+        sampled += len(poses)
+        _, elbow, tip = oracles.arm_points(model, b32)
+        if min(abs(elbow[2] - model.body_z), abs(tip[2] - model.body_z)) < 5.0:
+            near["body"] += 1
+        legs = np.radians(model.leg_angles)
+        if min(min(abs(oracles.wrap(b32[0] - leg)), math.pi - abs(oracles.wrap(b32[0] - leg))) for leg in legs) \
+                < math.radians(model.leg_half_width) + 5 * DEG:
+            near["legs"] += 1
+    print(f"\n{check}: {sum(accepted.values())} of {n_moves} moves accepted (by joints turning: {accepted}; "
+          f"ending within 5 mm of the body plane: {near['body']}, within 5 deg of a leg sector: {near['legs']}), "
+          f"{sampled:,} poses sampled in their boxes, all clear")
+    assert min(accepted.values()) > 300 and min(near.values()) > 100
+
+
 @pytest.mark.parametrize("what", ["body", "legs"])
 def test_swept_bound_against_the_model_at_40_digits(model, gen, what):
     """The C's verdicts on random boxes equal the model's bound (model/swept.py) evaluated at

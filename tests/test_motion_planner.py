@@ -361,6 +361,39 @@ def test_pinned_and_held_targets_keep_joint_1():
     assert m.aim[0] == pytest.approx(expect[0], abs=TOL_RAD)
 
 
+@pytest.mark.parametrize("rho, held", [(0.97, True), (1.03, False)], ids=["inside the release radius", "past it"])
+def test_a_held_joint_1_is_released_only_past_the_release_radius(rho, held):
+    """Once a target has come within axis_hold_radius (joint 1 held), it must go out past
+    axis_release_radius, not only past the hold radius, before joint 1 follows it again:
+    a target taken 90 deg round to `rho` x the release radius (beyond the hold radius)."""
+    hold, release = MODEL.motion.axis_hold_radius, MODEL.motion.axis_release_radius
+    assert hold < rho * release
+    q = np.radians([10.0, 40.0, -60.0])
+    m = started(q)
+    tick(m, round_axis(10.0, 0.5 * hold, -150.0))
+    assert m.aim[0] == pytest.approx(q[0], abs=1e-6)
+    out = round_axis(100.0, rho * release, -150.0)
+    tick(m, out)
+    expect, *_ = branch_ik(MODEL, out, q, -1.0, hold=held)
+    assert m.aim[0] == pytest.approx(expect[0], abs=TOL_RAD)
+    assert held == (m.aim[0] == pytest.approx(q[0], abs=1e-6))
+
+
+def test_a_target_shaken_about_the_hold_radius_does_not_chatter_joint_1():
+    """A target 2 % either side of axis_hold_radius, alternately 60 deg either way round the
+    axis (noise on a set position near the axis): joint 1 is held from the first time it
+    comes within the hold radius and never turns again."""
+    hold = MODEL.motion.axis_hold_radius
+    q = np.radians([0.0, 40.0, -60.0])
+    m = started(q)
+    aims = []
+    for k in range(40):
+        tick(m, round_axis(60.0 if k % 2 else -60.0, hold * (1.02 if k % 2 else 0.98), -150.0))
+        aims.append(m.aim[0])
+    assert aims == [aims[0]] * len(aims), np.degrees(aims[:6])
+    assert aims[0] == pytest.approx(q[0], abs=1e-6)     # the first target was inside: held at once
+
+
 def _step_rad(rpm):
     """One tick's step (rad) at a speed, as the servo's Moving Speed register can express it."""
     return speed_register(rpm) * RPM_PER_SPEED_UNIT * 2 * math.pi / 60 / MODEL.sample_rate
@@ -475,6 +508,21 @@ def test_a_target_crossing_a_legs_sector_is_aimed_edge_inside_edge_without_dithe
         tick(m, round_axis(even + (0.4 if k % 2 else -0.4), rho, DEPTH))
         shaken.add(m.leg_aim)
     assert len(shaken) == 1 and shaken != {LIB.MOTION_LEG_NONE}, shaken
+
+
+def test_a_target_pulled_inside_the_leg_distance_is_no_longer_aimed_for_a_leg():
+    """Aimed at a sector's edge (104 mm out, 3 deg into the sector), the target is pulled in
+    to 95 mm: no leg is in the way of the aim any more (MOTION_LEG_NONE), and the arm aims
+    at the target itself."""
+    rho = 104.0
+    m = started(facing(LEG - HW - 5.0, rho))
+    for deg in np.arange(-14.0, -HW + 3.5, 0.5):
+        tick(m, round_axis(LEG + deg, rho, DEPTH))
+    assert m.leg_aim == LIB.MOTION_LEG_EDGE
+    inside = round_axis(LEG - HW + 3.0, 95.0, DEPTH)
+    tick(m, inside)
+    assert m.leg_aim == LIB.MOTION_LEG_NONE
+    np.testing.assert_allclose(ee(list(m.aim)), inside, atol=TOL_MM)
 
 
 @pytest.mark.parametrize("rho", [98.5, 98.7], ids=lambda r: f"{r:.1f} mm out")

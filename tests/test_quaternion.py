@@ -18,8 +18,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from conftest import sympy_at_30_digits
-from uavarm.build import firmware, generated
-from uavarm.codegen import generate
+from uavarm.build import firmware, variants
 from uavarm.model import attitude, config, quaternion
 
 MODEL = config.load()
@@ -30,17 +29,11 @@ EPS32 = float(np.finfo(np.float32).eps)
 
 # ---------------------------------------------------------------- builds
 
-def variant_build(tmp_path_factory, name, edits):
-    """(model, ffi, lib) of the firmware generated from the committed model with edits."""
-    text = config.DEFAULT_MODEL.read_text()
-    for old, new in edits.items():
-        assert old in text, old
-        text = text.replace(old, new, 1)
-    folder = tmp_path_factory.mktemp(name)
-    (folder / "manipulator.toml").write_text(text)
-    assert generate.main(["--model", str(folder / "manipulator.toml"), "--out", str(folder / "gen")]) == 0
-    ffi, lib = firmware.load(folder / "gen")
-    return config.load(folder / "manipulator.toml"), ffi, lib
+def variant_build(changes):
+    """(model, ffi, lib) of the firmware of the committed model with keys edited (generated
+    once per test run for all workers: uavarm.build.variants)."""
+    v = variants.build(changes)
+    return v.model, v.ffi, v.lib
 
 
 @pytest.fixture(scope="module")
@@ -49,14 +42,13 @@ def fw():
 
 
 # A second build: another mount offset, lead and link delay, and a tight accelerometer gate.
-OFFSET_LEAD = {"offset = [0.0, 0.0, -80.0]": "offset = [12.0, -25.0, -60.0]", "lead_time = 0.04": "lead_time = 0.06",
-               "link_delay_min = 0.015": "link_delay_min = 0.06", "accel_reject_deg = 90.0": "accel_reject_deg = 3.0",
-               "accel_gain = 0.5": "accel_gain = 0.2", "bias_gain = 0.1": "bias_gain = 0.005"}
+OFFSET_LEAD = {"mount.offset": [12.0, -25.0, -60.0], "estimator.lead_time": 0.06, "estimator.link_delay_min": 0.06,
+               "estimator.accel_reject_deg": 3.0, "estimator.accel_gain": 0.2, "estimator.bias_gain": 0.005}
 
 
 @pytest.fixture(scope="module")
-def offset_lead(tmp_path_factory):
-    return variant_build(tmp_path_factory, "offset_lead", OFFSET_LEAD)
+def offset_lead():
+    return variant_build(OFFSET_LEAD)
 
 
 def test_committed_model_is_what_these_tests_assume():
@@ -449,11 +441,87 @@ def test_accelerometer_magnitude_gate(fw):
         assert (abs(e.q[1]) > 1e-4) == moves, (scale, list(e.q))
 
 
+@pytest.mark.parametrize("side", [-1, 1], ids=["below 1 g", "above 1 g"])
+def test_accelerometer_magnitude_gate_at_its_threshold(fw, side):
+    """The weight falls linearly in the squared magnitude, to 0 at |a|^2 = 1 +- 2 x
+    accel_reject_g (the model file's comment): 0.01 % inside that a step turns the estimate
+    (a little), 0.01 % outside it does not at all; halfway, at |a|^2 = 1 +- accel_reject_g,
+    it turns by half the 1 g step's turn (the correction also scales with |a|)."""
+    ffi, lib = fw
+    tol = MODEL.estimator.accel_reject_g
+    e = ffi.new("est_quat_t *")
+    acc, gyro, up = ffi.new("float[3]"), ffi.new("float[3]"), ffi.new("float[3]")
+    off = Rotation.from_euler("X", math.radians(20)).inv().apply([0, 0, 1])
+
+    def turn(n2):
+        e.q[0:4] = [1.0, 0.0, 0.0, 0.0]
+        e.bias[0:3] = [0.0, 0.0, 0.0]
+        acc[0:3] = [float(v) for v in off * math.sqrt(n2)]
+        lib.est_quat_step(e, acc, gyro, 2.0, 0.0, 0.0, 1.0 / MODEL.sample_rate, up)
+        return abs(e.q[1])
+    edge = 1 + side * 2 * tol
+    assert turn(edge * (1 - side * 1e-4)) > 0.0
+    assert turn(edge * (1 + side * 1e-4)) == 0.0
+    half = 1 + side * tol
+    assert turn(half) / turn(1.0) == pytest.approx(0.5 * math.sqrt(half), rel=1e-3)
+
+
+def drone_message_at(run, delay_us, seq):
+    """stab_drone_attitude of the truth measured 20 ms after the last accepted message,
+    arriving when its delay (excess of arrival - stamp over the clocks' offset, plus
+    link_delay_min) is delay_us: the offset is the stream's, raised by the 2 us a message
+    that stabiliser.c lets it creep (a drone clock running slow). Ticks run up to the
+    arrival. The status, and the estimate and count of accepted messages just before."""
+    s, lib = run.s, run.lib
+    stamp = (s.link.stamp_us + 20_000) & 0xFFFFFFFF
+    arrival = (stamp + s.link.offset_us + 2 + delay_us - round(MODEL.estimator.link_delay_min * 1e6)) & 0xFFFFFFFF
+    while run.t_us + TICK_US <= arrival:
+        run.t_us += TICK_US
+        run.sample()
+    pitch, roll = rocking((arrival - delay_us) / 1e6).as_euler("ZYX")[1:]
+    before = (list(s.quat.q), s.link.accepted)
+    return lib.stab_drone_attitude(s, seq & 0xFFFF, stamp, roll, pitch, arrival), before
+
+
+@pytest.mark.parametrize("extra_us, taken", [(0, True), (1, False)])
+def test_a_message_delayed_link_delay_max_is_taken_and_one_microsecond_more_refused(fw, extra_us, taken):
+    """A second of messages at the link's minimum delay teaches the clocks' offset; then each
+    message is later than the one before by 10 ms more (the stream stays fresh), up to a
+    delay of exactly link_delay_max: taken; one microsecond more: refused as stale, the
+    estimate unchanged."""
+    ffi, lib = fw
+    run = StabRun(ffi, lib, rocking, accel="thrust").run(0.1)
+    run.run(1.0, msg_rate=50.0, delay=MODEL.estimator.link_delay_min, seq0=10)
+    assert set(run.statuses) == {0}
+    seq = run.s.link.seq
+    dmin, dmax = (round(v * 1e6) for v in (MODEL.estimator.link_delay_min, MODEL.estimator.link_delay_max))
+    for delay_us in range(dmin + 10_000, dmax, 10_000):
+        seq += 1
+        assert drone_message_at(run, delay_us, seq)[0] == lib.STAB_LINK_ACCEPTED
+        assert run.s.link.delay_us == delay_us
+    status, before = drone_message_at(run, dmax + extra_us, seq + 1)
+    if taken:
+        assert status == lib.STAB_LINK_ACCEPTED and run.s.link.delay_us == dmax
+    else:
+        assert status == lib.STAB_LINK_STALE and (list(run.s.quat.q), run.s.link.accepted) == before
+
+
+@pytest.mark.parametrize("offset_dps", [(20.5, -20.5, 19.5), (-25.0, 3.0, 21.0)])
+def test_the_gyro_bias_is_clamped_at_gyro_bias_max(fw, offset_dps):
+    """A zero-rate offset beyond gyro_bias_max_dps (20) on some axes: a second at rest takes
+    the bias, each axis clamped to +-20 deg/s, the others as measured."""
+    ffi, lib = fw
+    offset = np.radians(offset_dps)
+    s = at_rest_run(ffi, lib, lambda t: offset, 1.005, accel_noise=0.0, gyro_noise=0.0)
+    limit = MODEL.estimator.gyro_bias_max_dps
+    assert np.degrees(list(s.quat.bias)) == pytest.approx(np.clip(offset_dps, -limit, limit), abs=1e-4)
+
+
 @pytest.fixture(scope="module")
-def short_delay(tmp_path_factory):
+def short_delay():
     """A link faster than a tick: each message measured after the last IMU sample, so the
     estimate at its time is extrapolated along the rate."""
-    return variant_build(tmp_path_factory, "short_delay", {"link_delay_min = 0.015": "link_delay_min = 0.002"})
+    return variant_build({"estimator.link_delay_min": 0.002})
 
 
 @pytest.mark.parametrize("which", ["committed", "offset_lead", "short_delay"])
@@ -731,7 +799,6 @@ def test_each_configuration_builds_and_stabilises_on_simboard(name):
     sys.path.insert(0, str(Path(__file__).parent))
     import oracles
     from simboard_tools import BusLog, pose_ok, sync_goal_speed
-    from uavarm.build import variants
     from uavarm.sim.board import Rocking, SimBoard
 
     v = variants.build(CONFIGS[name])

@@ -304,10 +304,8 @@ def test_the_servo_stream_carries_each_reply_while_the_arm_moves():
 def test_the_command_line_limps_stiffens_and_jogs_a_sitl():
     import subprocess
     import sys
-    import threading
     from uavarm.sim.sitl import Sitl
-    s = Sitl(speed=2.0)
-    threading.Thread(target=s.run, daemon=True).start()
+    s = Sitl(speed=2.0).start()
     run = lambda *a: subprocess.run([sys.executable, "-m", "uavarm.cli", "link", s.device, *a],
                                     capture_output=True, text=True, timeout=60)
     try:

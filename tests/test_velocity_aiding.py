@@ -305,6 +305,25 @@ def test_the_flight_controllers_slow_error_is_learnt(fw, link_only):
     assert np.allclose(np.degrees(list(both.s.fc_error)), [0.8, -0.5, 0.0], atol=0.02)
 
 
+def test_the_flight_controllers_learnt_error_is_clamped_at_fc_error_max(fw):
+    """The drone's attitude off by (+4, -2) deg, its velocity true: fc_error learns the roll
+    error up to fc_error_max_deg (3) and stops there exactly; no axis passes the clamp (the
+    pitch, inside it, is learnt to within what the roll left unlearnt turns it by)."""
+    err = np.radians([4.0, -2.0])
+    run = Run(fw, Flight(still, at_rest)).run(40.0, attitude_error=err)
+    limit = np.float32(math.radians(MODEL.estimator.fc_error_max_deg))
+    got = np.array(list(run.s.fc_error), dtype=np.float32)
+    assert got[0] == limit and np.abs(got).max() <= limit, np.degrees(got)
+    assert abs(math.degrees(got[1]) + 2.0) < 0.2, np.degrees(got)
+
+
+def test_the_learnt_accelerometer_bias_is_clamped_at_accel_bias_max(imu_velocity):
+    """Level and still with a bias of 0.1 g along up (beyond accel_bias_max_g, 0.08): the
+    learnt bias stops at the clamp exactly."""
+    run = Run(imu_velocity, Flight(still, at_rest), accel_bias=[0.0, 0.0, 0.1]).run(20.0)
+    assert np.float32(run.s.velocity.accel_bias[2]) == np.float32(MODEL.estimator.accel_bias_max_g)
+
+
 def test_the_velocitys_turns_carry_the_flight_controllers_error_along():
     """With the flight controller pulling while the velocity is fresh (link_gain_with_velocity
     0.5) and no learning of its own (fc_error_gain 0), only the velocity's turns move fc_error:

@@ -10,6 +10,7 @@ ignored by the loader, so a preset never silently measures the wrong firmware.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import fcntl
 import hashlib
 import re
@@ -175,16 +176,33 @@ def model_of(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> c
         raise VariantError(str(exc)) from None
 
 
+def _values(model: config.Model) -> str:
+    """What a model says, apart from its file's path and text (comments, the order edits were
+    made in): models with the same values generate the same code."""
+    return repr(dataclasses.replace(model, path=None, sha256=None))
+
+
 def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Variant:
-    """Generate and build the firmware of the edited model (cached by content)."""
-    if not changes and Path(base) == config.DEFAULT_MODEL:
+    """Generate and build the firmware of the edited model, cached by its values: edits that
+    leave the committed model's values as they are take the committed build (generated/)."""
+    model, gen_dir = generate(changes, base)
+    if gen_dir == firmware.generated.GENERATED:
+        ffi, lib = firmware.default()
+    else:
+        ffi, lib = firmware.load(gen_dir)
+    return Variant(model, ffi, lib, dict(changes), gen_dir)
+
+
+def generate(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> tuple[config.Model, Path]:
+    """(the edited model, the folder of its generated code), generated once for its values
+    (generated/ itself for the committed model's)."""
+    if Path(base) == config.DEFAULT_MODEL and (not changes or _values(model_of(changes)) == _values(config.load())):
         model = config.load(base)
         firmware.generated.check_current(model)     # generated/ is this model's (make codegen)
-        ffi, lib = firmware.default()
-        return Variant(model, ffi, lib, {}, firmware.generated.GENERATED)
+        return model, firmware.generated.GENERATED
     text = edited_text(changes, base)
-    from ..codegen import generate   # imports SymPy: only when a variant is really built
-    digest = hashlib.sha256((text + generate._templates_digest()).encode()).hexdigest()[:16]
+    from ..codegen import generate as codegen   # imports SymPy: only when a variant is really built
+    digest = hashlib.sha256((_values(model_of(changes, base)) + codegen._templates_digest()).encode()).hexdigest()[:16]
     out = SIM_BUILD / digest
     model_path = out / "manipulator.toml"
     gen_dir = out / "generated"
@@ -194,10 +212,9 @@ def build(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> Vari
             out.mkdir(parents=True, exist_ok=True)
             model_path.write_text(text)
             try:
-                files = generate.render(model_path)
+                files = codegen.render(model_path)
             except config.ModelError as exc:
                 raise VariantError(str(exc)) from None
-            generate.write(files, gen_dir)
+            codegen.write(files, gen_dir)
             stamp.write_text("".join(f"{k} = {_toml_value(v)}\n" for k, v in changes.items()))
-    ffi, lib = firmware.load(gen_dir)
-    return Variant(config.load(model_path), ffi, lib, dict(changes), gen_dir)
+    return config.load(model_path), gen_dir

@@ -299,11 +299,11 @@ def _round_trips(arm, seconds: float, wait: float) -> tuple[list[tuple[float, fl
     sent = []
     for k in range(max(1, round(seconds * PING_RATE_HZ))):
         sent.append(arm.ping(k))
-        while time.monotonic() < sent[-1] + 1.0 / PING_RATE_HZ:
+        while arm.clock() < sent[-1] + 1.0 / PING_RATE_HZ:
             arm.poll()
-            time.sleep(0.0005)
-    end = time.monotonic() + wait
-    while time.monotonic() < end:
+            time.sleep(0.0005)   # (a poll's interval: the link's clock paces the pings)
+    end = arm.clock() + wait
+    while arm.clock() < end:
         arm.poll()
         time.sleep(0.0005)
     back = {}

@@ -6,6 +6,13 @@ simulated servos and IMU; a pseudo-terminal stands in for the board's USB virtua
 so the link client, the ROS node or a terminal program cannot tell it from the real board:
 LLCP frames in, heartbeats every 0.5 s out.
 
+A machine too busy to run the board in real time makes it fall behind: it then runs flat out
+to catch up, and says so (`warn`, stderr by default) when it is more than LAG_WARN_S behind,
+so late heartbeats are not taken for a broken link. A link client in the same process can
+keep the board's time instead of the wall clock's (`ArmLink(device, clock=sitl.clock)`): its
+timeouts, the heartbeats' ages and the delays it measures then count in simulated time,
+whatever the load.
+
 Scenarios: `level` (default), `tilt:ROLL,PITCH` (degrees, held still) and
 `rock:ROLL,PITCH,HZ` (bench tilting: sinusoidal roll and pitch of those amplitudes).
 """
@@ -16,6 +23,7 @@ import math
 import os
 import select
 import struct
+import sys
 import threading
 import time
 import tty
@@ -29,6 +37,21 @@ from .imu_model import Mpu6050Sensor
 SLICE_S = 0.002
 # ioctl reading a tty's struct termios2 (Linux, asm-generic): its speeds are the bit rates
 TCGETS2 = 0x802C542A
+# The firmware's main loop runs every this many simulated microseconds (the closed-loop
+# simulator's: 0.36 s of CPU per simulated second engaged, against 0.57 s at SimBoard's
+# 100 us, so a busy machine keeps up more often).
+POLL_US = 250
+# Behind real time by more than this (s), the board says so; again at most every LAG_REPORT_S
+# while it stays behind, and once when it has caught up.
+LAG_WARN_S = 0.1
+LAG_REPORT_S = 5.0
+# clock() raises once the board's time has stood still this long (s of wall time): a hang
+# guard for clients that wait on it.
+STALL_S = 30.0
+
+
+class SitlStalled(RuntimeError):
+    """The simulated board's clock stopped (the SITL stopped or hung)."""
 
 
 SCENARIOS = "level, tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (deg, deg, Hz)"
@@ -57,8 +80,9 @@ class Sitl:
     `stop()` (from another thread) or Ctrl-C."""
 
     def __init__(self, scenario: str | None = None, *, speed: float = 1.0, model=None,
-                 link_delay: tuple[float, float] = (0.0, 0.0), **board_options):
+                 link_delay: tuple[float, float] = (0.0, 0.0), warn=None, **board_options):
         """link_delay: seconds (simulated) the link's bytes take to the board and back from it;
+        warn(text): where lagging behind real time is reported (default: stderr);
         board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag, supply: the hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
@@ -68,15 +92,40 @@ class Sitl:
         self._delay_us = [round(d * 1e6) for d in link_delay]
         self._inbound: deque[tuple[int, bytes]] = deque()    # (due board us, bytes) on their way in
         self._outbound: deque[tuple[int, bytes]] = deque()   # and out
-        self.board = SimBoard(model, motion=motion_of(scenario), record=False, **board_options)
+        self.board = SimBoard(model, motion=motion_of(scenario), record=False, poll_us=POLL_US, **board_options)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)          # bytes pass unchanged: no echo, no line editing
         os.set_blocking(self._master, False)
         self.device = os.ttyname(self._slave)
         self._stop = threading.Event()
+        self._thread = None
+        self._warn = warn or (lambda text: print(text, file=sys.stderr, flush=True))
+        self.lag = 0.0                   # s of real time the board is behind, now
+        self.max_lag = 0.0               # and at most, since it started
+        self._lag_told = None            # (wall time, board us) of the last lag report
+        self._clock_seen = (0, time.monotonic())
+
+    def start(self) -> "Sitl":
+        """run() in a daemon thread; stop() ends it."""
+        self._thread = threading.Thread(target=self.run, daemon=True, name="sitl")
+        self._thread.start()
+        return self
 
     def stop(self) -> None:
         self._stop.set()
+        if self._thread is not None and self._thread is not threading.current_thread():
+            self._thread.join(timeout=10)
+
+    def clock(self) -> float:
+        """The board's simulated time (s), for a link client in this process to keep
+        (ArmLink(device, clock=sitl.clock)). SitlStalled once it has not moved for STALL_S."""
+        now_us, wall = self.board.now_us, time.monotonic()
+        if now_us != self._clock_seen[0]:
+            self._clock_seen = (now_us, wall)
+        elif wall - self._clock_seen[1] > STALL_S:
+            raise SitlStalled(f"the simulated board's clock has stood at {now_us / 1e6:.3f} s for "
+                              f"{wall - self._clock_seen[1]:.0f} s: the SITL stopped or hung")
+        return now_us / 1e6
 
     def close(self) -> None:
         for fd in (self._master, self._slave):
@@ -85,7 +134,9 @@ class Sitl:
             except OSError:
                 pass
 
-    def _read_input(self, now_us: int) -> None:
+    def _read_input(self) -> None:
+        """The bytes written to the port, due delay_in after the board's time now (the link's
+        delays count in the board's time, the one a client keeping sitl.clock sees)."""
         while True:
             try:
                 data = os.read(self._master, 4096)
@@ -93,8 +144,7 @@ class Sitl:
                 return
             if not data:
                 return
-            # (no delay: at once, even if the board is behind the time it should be at)
-            self._inbound.append((now_us + self._delay_us[0] if self._delay_us[0] else 0, data))
+            self._inbound.append((self.board.now_us + self._delay_us[0] if self._delay_us[0] else 0, data))
 
     def _run_until_us(self, end_us: int) -> None:
         """The board run to end_us, the input handed to it as each piece's delay ends."""
@@ -104,11 +154,11 @@ class Sitl:
             self.board.send_bytes(data)
         self.board.run_until_us(end_us)
 
-    def _write_output(self, now_us: int) -> None:
+    def _write_output(self) -> None:
         out = self.board.take_link_output()
         if out:
             self._outbound.append((self.board.now_us + self._delay_us[1], out))
-        while self._outbound and self._outbound[0][0] <= now_us:
+        while self._outbound and self._outbound[0][0] <= self.board.now_us:
             out = self._outbound.popleft()[1]
             while out:
                 try:
@@ -118,20 +168,39 @@ class Sitl:
                 out = out[n:]
 
     def run(self) -> None:
-        """The link's delays count in the time the board should be at (real time times the
-        speed), so a board that falls behind for a moment does not shorten them."""
+        """The board kept at real time times the speed, a slice at a time, until stop()."""
         start = time.monotonic()
         try:
             while not self._stop.is_set():
                 target_us = round((time.monotonic() - start) * self.speed * 1e6)
-                self._read_input(target_us)
+                self._read_input()
                 end_us = min(target_us, self.board.now_us + round(SLICE_S * 1e6))
                 self._run_until_us(end_us)
-                self._write_output(round((time.monotonic() - start) * self.speed * 1e6))
+                self._write_output()
+                self._watch_lag(target_us - self.board.now_us)
                 if self.board.now_us >= target_us:
-                    time.sleep(0.0005)
+                    time.sleep(0.0005)   # ahead of the wall clock: wait for it
         finally:
             self.close()
+
+    def _watch_lag(self, behind_us: int) -> None:
+        """Report falling behind real time: how far, and how fast the board ran since the last
+        report (the speed asked was self.speed)."""
+        self.lag = max(0, behind_us) / 1e6 / self.speed
+        self.max_lag = max(self.max_lag, self.lag)
+        wall, now_us = time.monotonic(), self.board.now_us
+        told = self._lag_told
+        if told is None and self.lag > LAG_WARN_S or told is not None and wall - told[0] >= LAG_REPORT_S:
+            if self.lag > LAG_WARN_S:
+                rate = "" if told is None else \
+                    f", running at {(now_us - told[1]) / 1e6 / (wall - told[0]):.2f}x real time since the last report"
+                self._warn(f"sitl: the simulated board is {self.lag:.2f} s behind real time (speed {self.speed:g}x "
+                           f"asked{rate}): the machine is too busy; its heartbeats come late")
+                self._lag_told = (wall, now_us)
+            elif told is not None:
+                self._warn(f"sitl: the simulated board has caught up with real time (at most "
+                           f"{self.max_lag:.2f} s behind)")
+                self._lag_told = None
 
 
 class ServoBusPort:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from typing import Callable, Optional, Tuple
 
 from .client import CommandRefused, LinkError, PortNotFound
@@ -84,9 +85,11 @@ class ArmCore:
 
     def __init__(self, port: str, baud: int, log, on_status: Callable[[dict], None], *,
                  attitude_timeout: float = 0.2, keep_alive: bool = True, keep_alive_period: float = 0.2,
-                 attitude_topic: str = "the attitude topic"):
+                 attitude_topic: str = "the attitude topic", clock=time.monotonic):
+        """clock: the link's (ArmLink's); step(now) and the inputs' times are on it."""
         import serial
         self.port, self.baud, self.log, self.on_status = port, baud, log, on_status
+        self.clock = clock
         self.attitude_timeout, self.keep_alive, self.keep_alive_period = attitude_timeout, keep_alive, keep_alive_period
         self.attitude_topic = attitude_topic
         self._serial_errors = (serial.SerialException, OSError)
@@ -118,7 +121,7 @@ class ArmCore:
 
     def open(self, now: float) -> None:
         try:
-            self.link = SharedLink(self.port, self.baud)
+            self.link = SharedLink(self.port, self.baud, clock=self.clock)
         except PortNotFound as exc:
             if self.link_error != str(exc):
                 self.log.error(f"arm: {exc}; retrying every {self.REOPEN_PERIOD:.0f} s")

@@ -8,14 +8,21 @@
 
 Every command is confirmed by the heartbeats (sent every 0.5 s): the call returns when a
 heartbeat shows the command took effect, raises CommandRefused when the board's flags say
-why it did not, and LinkSilent when no heartbeat comes at all. An engaged arm parks if the
+why it did not, and LinkSilent when no heartbeat comes at all (LinkGarbled: bytes come but
+no valid frame; LinkLate: valid heartbeats come, all too late to trust). An engaged arm parks if the
 link is silent for the model's link.silence_timeout, so a drone keeps sending: `keep_alive()`
 repeats the current set position (only while no new target is being set).
 
 Only fresh heartbeats count: each carries a sequence number and the board's uptime, and one
 that arrives more than a heartbeat period later than the board's clock says it should (queued
-while no one read the port) is dropped and counted, never used to confirm a command. Gaps in
+while no one read the port) is dropped and counted, never used to confirm a command. None can
+have waited longer than since the port was last read empty, so a board whose clock runs slow
+(a simulated board behind real time) is not taken for one whose heartbeats queued. Gaps in
 the sequence and board restarts (uptime going back) are counted too.
+
+Time is this computer's monotonic clock, or `clock` (a function returning seconds): a
+simulated board in the same process (uavarm.sim.sitl) lends its own, so that timeouts and
+ages count in the time it keeps.
 """
 from __future__ import annotations
 
@@ -56,6 +63,11 @@ class LinkGarbled(LinkSilent):
     """Bytes arrive but no valid frame does (wrong baud, another device)."""
 
 
+class LinkLate(LinkSilent):
+    """Valid heartbeats arrive, but each more than a period after it was sent: they waited in
+    the port's buffer (this computer reads it too seldom)."""
+
+
 class CommandRefused(LinkError):
     """The board refused a command; the message says why."""
 
@@ -74,7 +86,10 @@ class HeartbeatAge:
 
     The age of a heartbeat is how much later than the freshest one it arrived, measured on the
     board's clock: arrival time minus uptime, less the least such value seen. The least value
-    may rise by DRIFT per second, so clocks 1,000 ppm apart do not age fresh heartbeats."""
+    may rise by DRIFT per second, so clocks 1,000 ppm apart do not age fresh heartbeats. Given
+    the time since the port was last read empty (read_gap), the age is at most that plus how
+    much older than the newest of its read it is: it was sent after that read, and before the
+    newest, whatever the two clocks' rates."""
 
     DRIFT = 1e-3
 
@@ -85,22 +100,28 @@ class HeartbeatAge:
         self.last = None           # (seq, uptime_ms, board time in s) of the last heartbeat
         self.lost = 0              # heartbeats missing from the sequence
         self.stale = 0             # heartbeats dropped as older than one period
+        self.stale_age = 0.0       # the age of the last one dropped (s)
         self.restarts = 0          # the board's uptime went back: it restarted
 
-    def fresh(self, batch: list[dict], now: float) -> list[dict]:
-        """The heartbeats of one read that are at most one period old, each with its 'age' (s)."""
+    def fresh(self, batch: list[dict], now: float, read_gap: float | None = None) -> list[dict]:
+        """The heartbeats of one read that are at most one period old, each with its 'age' (s);
+        read_gap: seconds since the port was last read empty (None: not known)."""
         if not batch:
             return []
-        offsets = [now - self._board_time(hb) for hb in batch]
+        times = [self._board_time(hb) for hb in batch]
+        offsets = [now - t for t in times]
         if self.floor is not None:
             self.floor += self.DRIFT * (now - self.floor_at)
         self.floor = min(offsets) if self.floor is None else min(self.floor, min(offsets))
         self.floor_at = now
         kept = []
-        for hb, offset in zip(batch, offsets):
+        for hb, t, offset in zip(batch, times, offsets):
             hb["age"] = offset - self.floor
+            if read_gap is not None:
+                hb["age"] = min(hb["age"], read_gap + max(0.0, times[-1] - t))
             if hb["age"] > self.period:
                 self.stale += 1
+                self.stale_age = hb["age"]
             else:
                 kept.append(hb)
         return kept
@@ -126,9 +147,10 @@ class ArmLink:
     seconds without a heartbeat that count as a dead link (default: three heartbeat periods
     of the model file)."""
 
-    def __init__(self, port, baud: int = 115200, *, silence: float | None = None):
+    def __init__(self, port, baud: int = 115200, *, silence: float | None = None, clock=time.monotonic):
         import serial
         period = HEARTBEAT_PERIOD_S
+        self.clock = clock
         if silence is None:
             silence = 3 * period
         if isinstance(port, str):
@@ -143,8 +165,9 @@ class ArmLink:
         self.decoder = llcp.Decoder(gap=0.1, expected_len=_expected_len)
         self.heartbeats: deque[dict] = deque(maxlen=100)
         self.streamed: dict[str, deque] = {"imu_raw": deque(maxlen=10_000), "servo_status": deque(maxlen=10_000)}
-        self.pongs: deque[tuple[dict, float]] = deque(maxlen=10_000)   # (pong, time.monotonic() read)
+        self.pongs: deque[tuple[dict, float]] = deque(maxlen=10_000)   # (pong, self.clock() read)
         self.bytes_received = 0
+        self._emptied_at = None    # when a read last left the port empty
         self._attitude_seq = 0
         self._velocity_seq = 0
 
@@ -161,14 +184,17 @@ class ArmLink:
 
     def poll(self) -> list[dict]:
         """The fresh heartbeats received since the last call, oldest first (non-blocking)."""
-        data = b""
+        data, emptied = b"", False
         while len(data) < READ_LIMIT:     # all that is queued, so a batch's newest dates the rest
             chunk = self.serial.read(4096)
             if not chunk:
+                emptied = True
                 break
             data += chunk
         self.bytes_received += len(data)
-        now = time.monotonic()
+        now = self.clock()
+        read_gap = None if self._emptied_at is None else now - self._emptied_at
+        self._emptied_at = now if emptied else None
         batch = []
         for payload in self.decoder.feed(data, now):
             name, fields = messages.decode(payload)
@@ -178,27 +204,39 @@ class ArmLink:
                 self.streamed[name].append(fields)
             elif name == "pong":
                 self.pongs.append((fields, now))
-        new = self.age.fresh(batch, now)
+        new = self.age.fresh(batch, now, read_gap)
         self.heartbeats.extend(new)
         return new
 
     def next_heartbeat(self, timeout: float | None = None) -> dict:
         """Wait for the next fresh heartbeat (the newest if several came at once); LinkSilent
-        (or LinkGarbled) if none comes in time."""
+        (LinkGarbled, LinkLate) if none comes in time."""
         timeout = self.silence if timeout is None else timeout
-        start_bytes, end = self.bytes_received, time.monotonic() + timeout
+        since, end = self.counts(), self.clock() + timeout
         while True:
             new = self.poll()
             if new:
                 return new[-1]
-            if time.monotonic() > end:
-                if self.bytes_received > start_bytes:
-                    raise LinkGarbled(f"{self.bytes_received - start_bytes} bytes in {timeout:.1f} s but no "
-                                      f"valid fresh heartbeat (checksum errors {self.decoder.checksum_errors}, "
-                                      f"bad characters {self.decoder.hex_errors}, older than a period "
-                                      f"{self.age.stale}): wrong baud or device?")
-                raise LinkSilent(f"no heartbeat for {timeout:.1f} s: is the board powered and the port right?")
-            time.sleep(0.005)
+            if self.clock() > end:
+                raise self.no_heartbeat(timeout, since)
+            time.sleep(0.005)   # (a poll's interval: how long is the clock's to say)
+
+    def counts(self) -> tuple[int, int, int, int]:
+        """(bytes, stale heartbeats, checksum errors, bad characters) received so far."""
+        return self.bytes_received, self.age.stale, self.decoder.checksum_errors, self.decoder.hex_errors
+
+    def no_heartbeat(self, timeout: float, since: tuple[int, int, int, int]) -> LinkSilent:
+        """Why no fresh heartbeat came in `timeout` s, from the counts() before: late heartbeats,
+        bytes that are no frame, or nothing at all."""
+        n_bytes, stale, checksum, bad = (now - before for now, before in zip(self.counts(), since))
+        if stale:
+            return LinkLate(f"{stale} heartbeat(s) in {timeout:.1f} s but each too late to trust (the last "
+                            f"{self.age.stale_age:.1f} s old, more than a {self.age.period:g} s period): this "
+                            "computer reads the port too seldom (too busy?)")
+        if n_bytes:
+            return LinkGarbled(f"{n_bytes} bytes in {timeout:.1f} s but no valid heartbeat (checksum errors "
+                               f"{checksum}, bad characters {bad}): wrong baud or device?")
+        return LinkSilent(f"no heartbeat for {timeout:.1f} s: is the board powered and the port right?")
 
     def status(self) -> dict:
         """The next heartbeat, with the fault bits named under 'fault_names'."""
@@ -301,17 +339,17 @@ class ArmLink:
         self.poll()
         if not keep:
             self.streamed[name].clear()
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
+        end = self.clock() + seconds
+        while self.clock() < end:
             self.poll()
-            time.sleep(0.005)
+            time.sleep(0.005)   # (a poll's interval)
         return list(self.streamed[name])
 
     def send_attitude(self, roll: float, pitch: float, stamp_us: int | None = None) -> None:
         """Forward the drone's attitude (rad) from its flight controller; call at >= 50 Hz."""
         if not (math.isfinite(roll) and math.isfinite(pitch)):
             raise ValueError(f"attitude must be finite, got roll {roll}, pitch {pitch}")
-        stamp = int(time.monotonic() * 1e6) if stamp_us is None else stamp_us
+        stamp = int(self.clock() * 1e6) if stamp_us is None else stamp_us
         self.send("drone_attitude", seq=self._attitude_seq, stamp_us=stamp & 0xFFFFFFFF, roll=roll, pitch=pitch)
         self._attitude_seq = (self._attitude_seq + 1) & 0xFFFF
 
@@ -320,14 +358,14 @@ class ArmLink:
         centre of rotation) from its odometry; call at >= 50 Hz, each measurement once."""
         if not all(math.isfinite(v) for v in (vx, vy, vz)):
             raise ValueError(f"velocity must be finite, got ({vx}, {vy}, {vz})")
-        stamp = int(time.monotonic() * 1e6) if stamp_us is None else stamp_us
+        stamp = int(self.clock() * 1e6) if stamp_us is None else stamp_us
         self.send("drone_velocity", seq=self._velocity_seq, stamp_us=stamp & 0xFFFFFFFF, vx=vx, vy=vy, vz=vz)
         self._velocity_seq = (self._velocity_seq + 1) & 0xFFFF
 
     def ping(self, seq: int) -> float:
-        """Send ping `seq` (stamped with this computer's microsecond clock); the time.monotonic()
-        it left at. The board's pong lands in self.pongs."""
-        sent = time.monotonic()
+        """Send ping `seq` (stamped with the link's clock in microseconds); the clock() it left
+        at. The board's pong lands in self.pongs."""
+        sent = self.clock()
         self.send("ping", seq=seq & 0xFFFF, stamp_us=int(sent * 1e6) & 0xFFFFFFFF)
         return sent
 

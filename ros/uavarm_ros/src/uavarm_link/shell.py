@@ -85,8 +85,8 @@ def status_line(hb: dict) -> str:
 class Session:
     """The open link, its heartbeat loop and the commands."""
 
-    def __init__(self, port: str, baud: int, out):
-        self.link = SharedLink(port, baud)
+    def __init__(self, port: str, baud: int, out, clock=time.monotonic):
+        self.link = SharedLink(port, baud, clock=clock)
         self.out = out
         self._stop = threading.Event()
         self._shown = None
@@ -100,7 +100,7 @@ class Session:
             try:
                 for hb in link.poll():
                     self._show_changes(hb)
-                if link.engaged and time.monotonic() - link.last_sent >= KEEP_ALIVE_S:
+                if link.engaged and link.clock() - link.last_sent >= KEEP_ALIVE_S:
                     link.keep_alive()
             except (LinkError, OSError) as exc:               # (serial.SerialException too)
                 self.loop_error = str(exc)
@@ -142,11 +142,12 @@ class Session:
         return status_line(action())
 
     def _hold(self, seconds: float) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
+        clock = self.link.clock
+        end = clock() + seconds
+        while clock() < end:
             if self.link.broken:
                 raise LinkError(f"serial link lost: {self.link.broken}")
-            time.sleep(min(POLL_S, max(0.0, end - time.monotonic())))
+            time.sleep(POLL_S)   # (a poll's interval: the link's clock says when the hold ends)
 
     def close(self) -> None:
         self._stop.set()
@@ -157,10 +158,11 @@ class Session:
             pass
 
 
-def run_shell(port: str, baud: int, lines, interactive: bool, out=None, err=None) -> int:
-    """Run the lines (an iterable of str) on one connection; the exit code."""
+def run_shell(port: str, baud: int, lines, interactive: bool, out=None, err=None, clock=time.monotonic) -> int:
+    """Run the lines (an iterable of str) on one connection; the exit code. clock: the link's
+    (ArmLink's), for the holds too."""
     out, err = out or sys.stdout, err or sys.stderr
-    session = Session(port, baud, out)
+    session = Session(port, baud, out, clock)
     try:
         if interactive:
             print("commands: enable, engage, goto X Y Z, disengage, disable, status, wait S, help, quit",
