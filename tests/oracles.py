@@ -11,6 +11,11 @@ import math
 
 import numpy as np
 
+# How far (mm) an end effector the firmware holds at a point may be from it: 1.5 units
+# (0.44 deg) per joint at ~140 mm reach, the goal rounded to a unit and a lagging shaft
+# stopped within its compliance margin (a unit) of the goal.
+FK_TOL_MM = 2.0
+
 
 def arm_points(m, q):
     """(shoulder, elbow, end effector) as numpy arrays, for q of shape (..., 3)."""

@@ -38,10 +38,7 @@ BROADCAST_ID = 0xFE
 FAULT = {name: 1 << i for i, (name, _) in enumerate(messages.FAULTS)}
 
 IDS = [s.id for s in MODEL.servos]
-# How far (mm) an end effector the firmware holds at a point may be from it: 1.5 units
-# (0.44 deg) per joint at ~140 mm reach, the goal rounded to a unit and a lagging shaft
-# stopped within its compliance margin (a unit) of the goal.
-FK_TOL_MM = 2.0
+FK_TOL_MM = oracles.FK_TOL_MM
 TICK = 1.0 / MODEL.sample_rate
 UNIT_RAD = math.radians(300.0) / 1023          # one position unit (AX-12A e-manual)
 RPM_PER_SPEED_UNIT = 0.111                     # Moving Speed, joint mode (AX-12A e-manual)

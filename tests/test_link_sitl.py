@@ -14,7 +14,7 @@ import tty
 import numpy as np
 import pytest
 
-from oracles import arm_points
+from oracles import FK_TOL_MM, arm_points
 from uavarm.link import llcp
 from uavarm.link import ArmLink, CommandRefused, LinkGarbled, LinkSilent, PortNotFound
 from uavarm.model import config
@@ -98,11 +98,12 @@ def test_commands_through_the_pseudo_terminal(sitl):
             arm.set_position(math.nan, 0.0, 0.0)
         arm.set_position(*TARGET)
         assert arm.engage()["engaged"] == 1
+        arm.keep_alive()                   # the link lives while the arm moves
 
         def at_target(hb):
             arm.keep_alive()
             ee = arm_points(m, [hb["q1"], hb["q2"], hb["q3"]])[2]
-            return np.linalg.norm(ee - TARGET) < 1.0
+            return np.linalg.norm(ee - TARGET) <= FK_TOL_MM
         assert wait_for(sitl, arm, at_target, 3.0) is not None, "the set position was not reached"
 
         hb = arm.disable()

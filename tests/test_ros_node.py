@@ -18,7 +18,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from conftest import SYSTEM_ENV, catkin_workspace, free_port, require_ros, stop_group
-from oracles import arm_points
+from oracles import FK_TOL_MM, arm_points
 from uavarm.link import llcp, messages
 from uavarm.link.arm_core import level_velocity
 from uavarm.link.ros_node import ATTITUDE_TYPES, roll_pitch
@@ -306,7 +306,7 @@ def test_engage_reaches_the_set_position_and_disable_cuts_power(start_arm):
     target = np.array(TARGET_M) * 1000.0
 
     def at_target(s):
-        return s.engaged and np.linalg.norm(arm_points(m, joints(s))[2] - target) < 1.0
+        return s.engaged and np.linalg.norm(arm_points(m, joints(s))[2] - target) <= FK_TOL_MM
     status = arm.wait_status(at_target, 4.0)
     assert status is not None, "the set position was not reached"
     assert np.allclose(status.set_position, TARGET_M, atol=1e-6)
