@@ -5,7 +5,10 @@ board (the firmware's host build), judged by plain geometry written here.
 For each scenario: the range of joint 1's commanded angle once settled (2 s after engage),
 its steps of more than 20 deg between consecutive goals, the largest step, the moves whose
 path (every joint at the same speed, each arriving at its own time, 9 samples) passes a
-joint limit, the body plane or a leg, and the heartbeats that flag the target out of reach.
+joint limit, the body plane or a leg, and the heartbeats that flag the target out of reach;
+then the shafts themselves, every simulated step (0.1 ms), judged the same way: with the model
+file's servo lag on the default 3S supply (11.1 V, sagging), and worst case, 45 ms of lag on
+9.0 V.
 Then targets going straight past joint 1's axis: the goals the firmware sends, tick by tick,
 against the target.
 """
@@ -17,8 +20,7 @@ import numpy as np
 
 from uavarm.build import firmware
 from uavarm.link import messages
-from uavarm.sim import ax12_sim
-from uavarm.sim.board import Gravity, Rocking, SimBoard, baud_register
+from uavarm.sim.board import Gravity, Rocking, SimBoard
 
 UNIT_RAD = math.radians(300.0) / 1023      # AX-12A: 1023 position units over 300 deg
 OUT_OF_REACH = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
@@ -73,9 +75,10 @@ def servo_path(a, b, samples=9):
     return a + np.sign(d) * np.minimum(t, np.abs(d))
 
 
-def run(m, motion, target, seconds, settle=2.0):
-    servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}) for s in m.servos]
-    board = SimBoard(m, servos=servos, motion=motion)
+def run(m, motion, target, seconds, settle=2.0, servo_lag=None, supply=None):
+    """servo_lag, supply: SimBoard's (None: the model file's lag, a sagging 11.1 V supply)."""
+    board = SimBoard(m, motion=motion, servo_lag=servo_lag, supply=supply)
+    board.shaft_trace = []
     board.send("enable", on=1)
     board.run(2.2)                              # parked, from hanging straight down
     if target is not None:
@@ -95,7 +98,8 @@ def run(m, motion, target, seconds, settle=2.0):
     steps = np.abs(np.diff(q1))
     through = sum(bool(unsafe(m, servo_path(a, b)).any()) for a, b in zip(q, q[1:]))
     beats = [hb["faults"] & OUT_OF_REACH for hb in board.heartbeats[-round(2 * seconds):]]   # 2 Hz
-    return {"range": float(q1.max() - q1.min()), "jumps": int((steps > 20.0).sum()), "largest": float(steps.max()),
+    trace = np.array([row[2:] for row in board.shaft_trace if row[1]], dtype=float)   # supply on
+    return {"shafts_out": int(unsafe(m, joints(m, trace)).sum()), "shafts": len(trace),"range": float(q1.max() - q1.min()), "jumps": int((steps > 20.0).sum()), "largest": float(steps.max()),
             "through": through, "moves": len(q) - 1, "engaged": board.heartbeats[-1]["engaged"],
             "out": sum(map(bool, beats)), "beats": len(beats)}
 
@@ -134,12 +138,15 @@ def report(m) -> None:
     print("\nMotion on the simulated board (bench/motion.py): joint 1's commanded angle once settled, "
           "and every move's path judged by plain geometry.\n")
     print("| scenario | joint-1 range (deg) | steps > 20 deg | largest step (deg) | moves through a limit, "
-          "the body or a leg | heartbeats out of reach |")
-    print("|---|---:|---:|---:|---:|---:|")
+          "the body or a leg | heartbeats out of reach | shaft samples in a limit, the body or a leg: 45 ms "
+          "lag, 9.0 V | the same, model lag, 11.1 V |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
     for name, motion, target, seconds in scenarios():
+        worst = run(m, motion, target, seconds, servo_lag=0.045, supply=9.0)
         r = run(m, motion, target, seconds)
         print(f"| {name} | {r['range']:.1f} | {r['jumps']} | {r['largest']:.1f} | {r['through']} of {r['moves']} "
-              f"| {r['out']} of {r['beats']} |")
+              f"| {r['out']} of {r['beats']} | {worst['shafts_out']} of {worst['shafts']} "
+              f"| {r['shafts_out']} of {r['shafts']} |")
     print(f"\nTargets going straight past joint 1's axis at {PASS_SPEED:g} mm/s (bench/motion.py axis_pass), "
           f"from {PASS_SIDE:g} mm on one side to {PASS_SIDE:g} mm on the other, {-PASS_DEPTH:g} mm down: "
           "the goals sent, tick by tick.\n")
