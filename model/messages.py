@@ -49,28 +49,33 @@ MESSAGES = (
     Message("drone_attitude", 0x13, "to_arm",
             (("seq", "u16"), ("stamp_us", "u32"), ("roll", "f32"), ("pitch", "f32")),
             "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
-            "seq counts up by one per message, stamp_us is the drone's clock. Like every frame sent "
-            "to the arm it keeps the link alive; fused when estimator.drone_attitude is set. "
+            "seq counts up by one per message, stamp_us is the drone's clock. It keeps the link alive "
+            "and marks the drone as flying: a limp or jogged arm parks with the torque on, the streams "
+            "stop, and the service commands are refused for link.silence_timeout after it; fused when "
+            "estimator.drone_attitude is set. "
             "Signs as REP 103 (x forward, y left, z up): roll positive right side down, pitch positive "
             "nose down (a flight controller's FRD pitch with its sign flipped)"),
     Message("jog", 0x14, "to_arm", (("joint", "u8"), ("mode", "u8"), ("value", "f32")),
-            "service (enabled, not engaged): move joint 1-3 at park speed, mode 0 to the angle value "
+            "service (enabled, not engaged, the drone not flying): move joint 1-3 at park speed, mode 0 to the angle value "
             "(rad), mode 1 by value servo units from its goal; checked like every move (limits, body, "
             "legs, the swept path). Turns the torque back on if it was off"),
     Message("torque", 0x15, "to_arm", (("on", "u8"),),
-            "service (enabled, not engaged): 0 torque off (limp for positioning by hand; the supply "
+            "service (enabled, not engaged, the drone not flying): 0 torque off (limp for positioning by hand; the supply "
             "stays on and positions are still read), 1 torque on, holding where the arm stands"),
     Message("stream", 0x16, "to_arm", (("imu_every", "u8"), ("servos", "u8")),
-            "service (not engaged; engage stops it): imu_raw every imu_every ticks (0 off), "
+            "service (not engaged, and to turn one on the drone not flying; engage and the drone's "
+            "messages stop it): imu_raw every imu_every ticks (0 off), "
             "servo_status after every status read (servos 1) or not (0)"),
     Message("ping", 0x17, "to_arm", (("seq", "u16"), ("stamp_us", "u32")),
             "answered at once, in any state, with pong (seq and stamp_us given back): the round trip "
-            "and the board's time of arrival measure the link's delay (`uavarm calibrate link`)"),
+            "and the board's time of arrival measure the link's delay (`uavarm calibrate link`). It keeps "
+            "nothing alive: alone, an engaged, limp or jogged arm parks after link.silence_timeout"),
     Message("drone_velocity", 0x18, "to_arm",
             (("seq", "u16"), ("stamp_us", "u32"), ("vx", "f32"), ("vy", "f32"), ("vz", "f32")),
             "the velocity of the drone's centre of rotation from its odometry (m/s, gravity-aligned "
             "heading-following frame: x forward, y left, z up) at >= 50 Hz; seq and stamp_us as in "
-            "drone_attitude (the same clock). Fused when estimator.drone_velocity is set; refused when "
+            "drone_attitude (the same clock); it marks the drone as flying as drone_attitude does. Fused when "
+            "estimator.drone_velocity is set; refused when "
             "not finite or any component beyond 50 m/s, stale or not newer than the last"),
     Message("heartbeat", 0x20, "to_drone", (
         ("seq", "u16"), ("uptime_ms", "u32"),
@@ -120,6 +125,8 @@ REFUSALS = (
     ("engaged", "a service command (jog, torque, stream) while engaged: disengage first"),
     ("bad_jog", "jog of a joint other than 1-3, by a non-finite value, or to a pose outside the limits, "
                 "in the body or a leg, or with no clear path"),
+    ("flying", "a service command (torque, jog, a stream on) while the drone's attitude or velocity came "
+               "within link.silence_timeout: the drone may be flying"),
 )
 
 # heartbeat.reset_cause: why the chip last reset (RCC_CSR's flags, read once at start-up)
@@ -155,7 +162,8 @@ FAULTS = (
     ("servo_config", "the registers written at enable could not be read back (latched; power cut)"),
     ("imu", "the IMU did not answer, is not an MPU-6050, or gave no usable sample (none new, or full "
             "scale) for several ticks: an engaged arm parks, engage is refused until it is back"),
-    ("link_lost", "the link fell silent while engaged, so the arm parked (latched until engage)"),
+    ("link_lost", "the link fell silent while engaged, limp or at a jogged pose, so the arm parked with the "
+                  "torque on (latched until engage)"),
     ("out_of_reach", "at the current tilt the set position is out of the branch's reach: the arm holds "
                      "the nearest point it reaches (or its last goal)"),
     ("command_refused", "the last engage or set_position was refused; heartbeat.refusal says why"),

@@ -6,6 +6,7 @@ import pytest
 
 from uavarm.link import llcp, messages
 from uavarm.link import ArmLink, CommandRefused, HeartbeatAge, LinkGarbled, LinkLate, LinkSilent
+from uavarm.link.client import KEEP_ALIVE_S, RestartWatch
 from uavarm.model import config
 
 PERIOD = config.load().heartbeat_period
@@ -159,3 +160,68 @@ def test_late_heartbeats_are_told_from_garbled_bytes_and_silence():
     with pytest.raises(LinkSilent, match="no heartbeat for 1.5 s: is the board powered") as silent:
         ArmLink(QueuedPort(), clock=Clock()).next_heartbeat()
     assert type(silent.value) is LinkSilent
+
+
+# ---------------------------------------------------------------- keep-alive and restarts
+
+def sent_frames(port) -> list[tuple[str, dict]]:
+    """The messages written to a stand-in port, decoded as the board would."""
+    decoder = llcp.Decoder(expected_len=lambda i: messages.BY_ID[i].size if i in messages.BY_ID else -1)
+    return [messages.decode(p) for p in decoder.feed(b"".join(port.written), 0.0)]
+
+
+def test_kept_alive_the_polls_repeat_the_set_position_and_a_ping_is_none():
+    """Within kept_alive every poll repeats the heartbeat's set position once nothing (a ping
+    does not count: it keeps nothing alive on the board) was sent for KEEP_ALIVE_S; outside
+    it, nothing is sent."""
+    clock = Clock(step=0.001)
+    port = QueuedPort(heartbeat(0, 1_000, enabled=1, set_x=60.0, set_y=20.0, set_z=-120.0))
+    arm = ArmLink(port, clock=clock)
+    for _ in range(500):
+        arm.poll()
+    assert port.written == []
+    pings, end = 0, clock.t + 2.0
+    with arm.kept_alive():
+        while clock.t < end:                         # 2 s of this clock, a ping before each poll
+            arm.ping(pings)
+            pings += 1
+            arm.poll()
+    frames = sent_frames(port)
+    keep = [f for name, f in frames if name == "set_position"]
+    assert len([1 for name, _ in frames if name == "ping"]) == pings
+    assert round(2.0 / KEEP_ALIVE_S) - 1 <= len(keep) <= round(2.0 / KEEP_ALIVE_S) + 1
+    assert all((f["x"], f["y"], f["z"]) == (60.0, 20.0, -120.0) for f in keep)
+    port.written.clear()
+    arm.poll()
+    assert arm.keep_alive_every is None and port.written == []
+
+
+RESET = {name: k for k, (name, _) in enumerate(messages.RESET_CAUSES)}
+
+
+def board_hb(uptime_ms, enabled=1, engaged=0, cause="power_on", last_fault=0):
+    return {"uptime_ms": uptime_ms, "enabled": enabled, "engaged": engaged, "reset_cause": RESET[cause],
+            "last_fault": last_fault}
+
+
+@pytest.mark.parametrize("before, after, told", [
+    (board_hb(60_000, engaged=1), board_hb(700, enabled=0, cause="watchdog"), "reset cause watchdog"),
+    (board_hb(60_000), board_hb(700, enabled=0, cause="watchdog", last_fault=3), "watchdog after a HardFault"),
+    (board_hb(60_000), board_hb(700, enabled=0, cause="window_watchdog"), "reset cause window_watchdog"),
+    (board_hb(60_000), board_hb(700, enabled=0, cause="brown_out", last_fault=5), "brown_out after a BusFault"),
+    (board_hb(60_000, enabled=0), board_hb(700, enabled=0, cause="watchdog"), None),      # not enabled
+    (board_hb(60_000), board_hb(700, enabled=0, cause="pin"), None),                      # the reset button
+    (board_hb(60_000), board_hb(700, enabled=0, cause="power_on"), None),
+    (board_hb(60_000, cause="watchdog"), board_hb(60_500, cause="watchdog"), None),       # no restart
+    (board_hb(0xFFFF_FF00, cause="watchdog"), board_hb(0xF4, cause="watchdog"), None),    # uptime wrap
+])
+def test_a_restart_while_enabled_after_a_watchdog_reset_or_a_fault_is_told(before, after, told):
+    watch = RestartWatch()
+    assert watch.check(before) is None
+    text = watch.check(after)
+    if told is None:
+        assert text is None and watch.count == 0
+    else:
+        assert told in text and "while enabled" in text and "limp" in text and watch.count == 1
+        assert ("it was engaged" in text) == bool(before["engaged"])
+        assert watch.check(dict(after, uptime_ms=after["uptime_ms"] + 500)) is None     # told once

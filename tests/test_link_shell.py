@@ -7,6 +7,7 @@ import io
 import re
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -114,3 +115,71 @@ def test_a_port_that_vanishes_mid_session_ends_it_with_one_line(sitl):
         proc.kill()
     assert proc.returncode == 1
     assert "Traceback" not in err and re.match(r"error: line [12]: serial link lost: the serial port failed", err) and err.count("\n") == 1
+
+
+# ---------------------------------------------------------------- a board that restarts
+
+def reset_once_engaged(sitl):
+    """Resets the SITL's chip (its watchdog) once a heartbeat says the arm is engaged."""
+    def run():
+        end = sitl.clock() + 30
+        while not (sitl.board.heartbeats and sitl.board.heartbeats[-1]["engaged"]):
+            if sitl.clock() > end:
+                return
+            time.sleep(0.01)                                   # (until the board's heartbeat says so)
+        sitl.reset("watchdog")
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    return thread
+
+
+def since_reset(sitl) -> list[dict]:
+    """The board's heartbeats from its restart on (its uptime went back)."""
+    hbs = sitl.board.heartbeats
+    k = max(i for i in range(1, len(hbs)) if hbs[i]["uptime_ms"] < hbs[i - 1]["uptime_ms"])
+    return hbs[k:]
+
+
+def torque_on_everywhere(sitl) -> bool:
+    return all(s.register("torque_enable") == 1 for s in sitl.board.bus.servos)
+
+
+def test_a_board_reset_mid_script_ends_it_with_an_error_and_enables_it_again(sitl):
+    """Engaged, then the board's watchdog resets it: the script ends at the line it was on
+    with the restart named, and the board is enabled again, so it parks with the torque on
+    (not engaged: never engaged again by the shell)."""
+    reset = reset_once_engaged(sitl)
+    out, err = io.StringIO(), io.StringIO()
+    code = run_shell(sitl.device, 115200, ["enable", "engage", "wait 20", "status"], interactive=False,
+                     out=out, err=err, clock=sitl.clock)
+    reset.join(timeout=5)
+    assert code == 1, (out.getvalue(), err.getvalue())
+    assert re.fullmatch(r"error: line 3: the board restarted while enabled \(reset cause watchdog, up [\d.]+ s "
+                        r"again\): it came up with the servo power off, the arm limp; it was engaged; enabled "
+                        r"again: it parks \(engage again when ready\)\n", err.getvalue()), err.getvalue()
+    end = sitl.clock() + 10.0
+    while state_name(since_reset(sitl)[-1]["state"]) != "parked":
+        assert sitl.clock() < end, "the board enabled again did not park"
+        time.sleep(0.05)                                       # (until its heartbeat says so)
+    hbs = since_reset(sitl)
+    assert not hbs[0]["enabled"] and hbs[-1]["enabled"] and not any(h["engaged"] for h in hbs)
+    assert torque_on_everywhere(sitl) and sitl.board.servo_power
+
+
+def test_at_a_prompt_a_board_reset_is_said_at_once_and_with_no_reenable_left_off(sitl, capsys):
+    """The same reset at a prompt: said on the spot (the session goes on); with reenable off
+    the board stays disabled, its servo supply off."""
+    reset = reset_once_engaged(sitl)
+    m = config.load()
+    assert run_shell(sitl.device, 115200, ["enable", "engage", f"wait {3 * m.link_silence_timeout}", "status"],
+                     interactive=True, clock=sitl.clock, reenable=False) == 0
+    reset.join(timeout=5)
+    out, err = capsys.readouterr()
+    assert re.search(r"^error: the board restarted while enabled \(reset cause watchdog, .*; it was engaged; "
+                     r"left so \(--no-reenable\)$", err, re.M), err
+    assert "status: ok" in out
+    hbs = since_reset(sitl)
+    assert len(hbs) >= 4 and not any(h["enabled"] for h in hbs) and not sitl.board.servo_power
+    from uavarm.cli import parser                             # the command line's switch for it
+    assert parser().parse_args(["link", sitl.device, "shell", "--no-reenable"]).reenable is False
+    assert parser().parse_args(["link", sitl.device, "shell"]).reenable is True

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from oracles import FK_TOL_MM, arm_points
-from uavarm.link import llcp
+from uavarm.link import llcp, messages
+from uavarm.link.messages import fault_names
 from uavarm.link import ArmLink, CommandRefused, LinkGarbled, LinkSilent, PortNotFound
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
@@ -160,6 +161,92 @@ def test_attitude_feed_keeps_an_engaged_arm_engaged(sitl):
         hb = arm.status()
         assert hb["engaged"] == 1 and "link_lost" not in hb["fault_names"]
         assert sitl.board.app.drone_attitudes == sent     # every frame arrived whole
+
+
+
+# ---------------------------------------------------------------- bench and flight
+
+class DroneLink(ArmLink):
+    """A link that is also the drone's flight controller: while `flying`, each poll (every wait
+    for a heartbeat polls) sends drone_attitude once 0.02 s of the SITL's clock has passed
+    since the last, 50 Hz."""
+    flying = False
+    _fed = -math.inf
+
+    def poll(self):
+        if self.flying and self.clock() - self._fed >= 0.02:
+            self._fed = self.clock()
+            self.send_attitude(0.0, 0.0)
+        return super().poll()
+
+
+def state_of(hb) -> str:
+    return messages.STATES[hb["state"]][0]
+
+
+def torque_on_everywhere(sitl) -> bool:
+    return all(s.register("torque_enable") == 1 for s in sitl.board.bus.servos)
+
+
+def test_while_the_drone_flies_the_bench_is_refused_and_its_attitude_parks_a_limp_arm(sitl):
+    """The drone's attitude at 50 Hz: torque off and a jog are refused as `flying` and the arm
+    stays parked with the torque on; a silence timeout after the drone's last message the
+    bench is back (the arm goes limp); the drone's next attitude turns the torque back on and
+    parks it, no link_lost (the link never fell silent)."""
+    m = config.load()
+    with DroneLink(sitl.device, clock=sitl.clock) as arm:
+        arm.enable()
+        assert wait_for(sitl, arm, lambda hb: state_of(hb) == "parked", 10.0) is not None
+        arm.flying = True
+        arm.collect("imu_raw", 0.1)                   # (the drone's attitude comes)
+        for command in (lambda: arm.torque(False), lambda: arm.jog(2, angle=math.radians(119.0))):
+            with pytest.raises(CommandRefused, match="refused: .*the drone may be flying"):
+                command()
+            hb = arm.next_heartbeat()
+            assert state_of(hb) == "parked" and torque_on_everywhere(sitl)
+        arm.flying = False                            # it lands
+        arm.collect("imu_raw", m.link_silence_timeout + 0.1)
+        with arm.kept_alive():
+            assert state_of(arm.torque(False)) == "limp"
+            assert not torque_on_everywhere(sitl)
+            arm.flying = True                         # and takes off again
+            hb = wait_for(sitl, arm, lambda hb: state_of(hb) == "parked", 5.0)
+        assert hb is not None, "the limp arm did not park when the drone's attitude came"
+        assert torque_on_everywhere(sitl) and not hb["engaged"] and hb["enabled"]
+        assert "link_lost" not in fault_names(hb["faults"])
+
+
+def test_pings_keep_nothing_alive_and_a_jogged_arm_parks_once_the_link_is_silent(sitl):
+    """A latency tool pinging at 50 Hz for 6 s, every ping answered: the engaged arm parks
+    (link_lost). Then jogged (kept alive until there) and left: 10 s later it is parked with
+    the torque on and link_lost."""
+    m = config.load()
+    with link(sitl) as arm:
+        arm.enable()
+        arm.engage()
+        pings, end = 0, sitl.clock() + 6.0
+        while sitl.clock() < end:
+            arm.ping(pings)
+            pings += 1
+            due = sitl.clock() + 0.02
+            while sitl.clock() < due:
+                arm.poll()
+                time.sleep(0.001)                     # (a poll's interval: the SITL's clock paces)
+        arm.poll()
+        hb = arm.status()
+        assert hb["engaged"] == 0 and "link_lost" in hb["fault_names"] and state_of(hb) in ("parking", "parked")
+        assert len(arm.pongs) >= pings - 5, (len(arm.pongs), pings)      # the last few still on their way
+        assert wait_for(sitl, arm, lambda hb: state_of(hb) == "parked", 5.0) is not None
+        with arm.kept_alive():                        # (until there)
+            arm.jog(2, angle=math.radians(119.0))
+            assert wait_for(sitl, arm, lambda hb: state_of(hb) == "jogged", 5.0) is not None
+        end = sitl.clock() + 10.0
+        hbs = []
+        while sitl.clock() < end:
+            hbs.append(arm.next_heartbeat())
+        assert state_of(hbs[0]) == "jogged"
+        assert state_of(hbs[-1]) == "parked" and "link_lost" in fault_names(hbs[-1]["faults"])
+        assert torque_on_everywhere(sitl) and hbs[-1]["enabled"] and not hbs[-1]["engaged"]
 
 
 def test_a_sitl_behind_real_time_says_so_and_a_client_on_its_clock_does_not_mind(monkeypatch):

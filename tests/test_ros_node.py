@@ -416,3 +416,36 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
         time.sleep(0.1)                                  # (until the node's log says it; a hang guard)
     assert "fault link_lost" in arm.log()
     print(f"attitude forwarded at {rate:.1f} Hz ({len(window)} frames)")
+
+
+@pytest.mark.parametrize("reenable", [True, False])
+def test_a_board_reset_mid_flight_is_an_error_and_by_default_it_is_enabled_again(start_arm, reenable):
+    """Engaged, the board's watchdog resets it (it comes up disabled: the arm would hang limp):
+    the node logs an error and counts it in unexpected_resets; by default it enables the board
+    again, which parks with the torque on, and never engages it; with ~reenable false the
+    board stays disabled, its servo supply off."""
+    parked = [name for name, _ in messages.STATES].index("parked")
+    arm = start_arm(**({} if reenable else {"reenable": "false"}))
+    assert arm.call("enable", True).success
+    assert arm.call("engage", True).success
+    status = arm.wait_status(lambda s: s.engaged, 2.0)
+    assert status is not None and status.unexpected_resets == 0
+    arm.sitl.reset("watchdog")
+    status = arm.wait_status(lambda s: s.unexpected_resets > 0, 3.0)
+    assert status is not None, "the restart was not reported"
+    assert status.unexpected_resets == 1 and status.reset_cause == "watchdog" and not status.engaged
+    if reenable:
+        status = arm.wait_status(lambda s: s.enabled and s.state == parked, 10.0)
+        assert status is not None, "the board enabled again did not park"
+        assert all(s.register("torque_enable") == 1 for s in arm.sitl.board.bus.servos)
+        assert arm.wait_status(lambda s: s.engaged or s.unexpected_resets != 1, 2.0) is None
+    else:
+        assert arm.wait_status(lambda s: s.enabled or s.unexpected_resets != 1, 3.0) is None
+        assert not arm.sitl.board.servo_power
+    told = "arm: the board restarted while enabled (reset cause watchdog"
+    end = time.monotonic() + 60
+    while told not in arm.log() and time.monotonic() < end:
+        time.sleep(0.1)                                  # (until the node's log says it; a hang guard)
+    line = next((line for line in arm.log().splitlines() if told in line), "")
+    assert line.startswith("[ERROR]") and "it was engaged" in line, arm.log()
+    assert ("enable sent again" in line) == reenable and ("reenable is off" in line) != reenable

@@ -98,16 +98,16 @@ def link(args) -> int:
 def _shell(args) -> int:
     from .link.shell import prompt_lines, run_shell
     if args.script is None and sys.stdin.isatty():
-        return run_shell(args.port, args.baud, prompt_lines(), interactive=True)
+        return run_shell(args.port, args.baud, prompt_lines(), interactive=True, reenable=args.reenable)
     if args.script is None or args.script == "-":
-        return run_shell(args.port, args.baud, sys.stdin, interactive=False)
+        return run_shell(args.port, args.baud, sys.stdin, interactive=False, reenable=args.reenable)
     try:
         with open(args.script) as f:
             lines = f.readlines()
     except OSError as exc:
         print(f"error: --script {args.script}: {exc.strerror}", file=sys.stderr)
         return 1
-    return run_shell(args.port, args.baud, lines, interactive=False)
+    return run_shell(args.port, args.baud, lines, interactive=False, reenable=args.reenable)
 
 
 def _require_current_code() -> None:
@@ -183,9 +183,11 @@ def parser() -> argparse.ArgumentParser:
     lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor",
                                        "limp", "stiff", "jog", "shell"],
                     help="limp: torque off (positions still read), stiff: torque back on, jog J DEG: joint J "
-                         "(1-3) to DEG at park speed (service commands, refused while engaged); shell: one "
-                         "connection for many commands, typed at a prompt or read from --script or standard "
-                         "input (a CSV of targets X,Y,Z[,SECONDS] too), the arm kept engaged in between")
+                         "(1-3) to DEG at park speed (service commands, refused while engaged or while the "
+                         "drone's attitude streams; alone, a limp or jogged arm parks once the link has been "
+                         "silent for a second); shell: one connection for many commands, typed at a prompt or "
+                         "read from --script or standard input (a CSV of targets X,Y,Z[,SECONDS] too), the arm "
+                         "kept engaged, limp or jogged in between")
     lk.add_argument("xyz", type=FINITE, nargs="*", metavar="X Y Z",
                     help="goto: target in mm; jog: JOINT DEG (degrees)")
     lk.add_argument("--baud", type=_integer(1), default=115200,
@@ -193,6 +195,10 @@ def parser() -> argparse.ArgumentParser:
     lk.add_argument("--script", default=None, metavar="FILE",
                     help="shell: commands or targets from FILE ('-': standard input; default: a prompt when "
                          "standard input is a terminal, else standard input)")
+    lk.add_argument("--no-reenable", dest="reenable", action="store_false",
+                    help="shell: a board that restarts while enabled after a watchdog reset or a fault (it "
+                         "comes up limp) is reported but not enabled again (default: enabled again, so it "
+                         "parks; never engaged again)")
     lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")

@@ -5,7 +5,13 @@ implausible or noisy is refused with the reason and the model file is left as it
 
 The procedures take `ask(text)` (wait for the user; the terminal's Enter) and
 `confirm(question)` (yes or no), so the tests drive them through a simulated board exactly
-as a user does on the bench."""
+as a user does on the bench.
+
+The servo and lag calibrations limp and jog the arm: the board takes those only on the bench
+(no drone_attitude or drone_velocity for link.silence_timeout: refused as `flying` otherwise)
+and parks a limp or jogged arm once the link has been silent that long, so they keep it alive
+(ArmLink.kept_alive: the set position repeated, which marks no flight) and read the link on
+while the user acts; they park the arm when done."""
 from __future__ import annotations
 
 import threading
@@ -31,14 +37,15 @@ POSITIONS = (
 TRIES = 3
 
 
-def _ask_reading(arm, ask, text: str) -> None:
-    """ask(text) while the link is read on, so that the rates of the turn the user makes
-    meanwhile are all kept (and none pile up unread)."""
-    done, failed = threading.Event(), []
+def _ask_reading(arm, ask, text: str):
+    """ask(text) (or a confirm) while the link is read on, so that the rates of the turn the
+    user makes meanwhile are all kept (and none pile up unread), and a kept-alive arm stays so;
+    its answer."""
+    done, answer, failed = threading.Event(), [], []
 
     def wait():
         try:
-            ask(text)
+            answer.append(ask(text))
         except BaseException as exc:          # (Ctrl-D: EOFError) raised here again
             failed.append(exc)
         finally:
@@ -48,6 +55,7 @@ def _ask_reading(arm, ask, text: str) -> None:
         arm.poll()
     if failed:
         raise failed[0]
+    return answer[0]
 
 
 def _take_streamed(arm) -> list[dict]:
@@ -186,7 +194,7 @@ SERVO_SPREAD_UNITS = 2             # a still joint's readings stay within this
 def _zero_pose_units(arm, ask, seconds: float) -> list[int]:
     """Each servo's position (units) while the user holds the arm at the zero pose."""
     for attempt in range(TRIES):
-        ask(ZERO_POSE)
+        _ask_reading(arm, ask, ZERO_POSE)
         frames = arm.collect("servo_status", seconds)
         by_servo = [[f["position"] for f in frames if f["servo"] == j] for j in range(3)]
         missing = [j + 1 for j, v in enumerate(by_servo) if len(v) < 3]
@@ -206,23 +214,26 @@ def _zero_pose_units(arm, ask, seconds: float) -> list[int]:
 
 def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0) -> bool:
     """Each servo's zero (its units at joint angle 0) and direction: limp, the arm held at the
-    zero pose by hand, then torque on and a small jog of each joint, whose sense the user sees."""
+    zero pose by hand, then torque on and a small jog of each joint, whose sense the user sees;
+    then the arm parks."""
     model = config.load(model_path)
     hb = arm.next_heartbeat()
     if not hb["enabled"] or hb["engaged"]:
         raise CalibrationError("the arm must be enabled and not engaged: `uavarm link PORT enable` first")
-    arm.torque(False)
-    arm.stream(servos=True)
-    try:
-        units = _zero_pose_units(arm, ask, seconds)
-    finally:
-        arm.stream(servos=False)
-    arm.torque(True)                  # held where the hands left it
-    directions = []
-    for j, question in enumerate(DIRECTION_QUESTIONS, 1):
-        arm.jog(j, units=JOG_UNITS)
-        directions.append(1 if confirm(question) else -1)
-        arm.jog(j, units=-JOG_UNITS)
+    with arm.kept_alive():
+        arm.torque(False)
+        arm.stream(servos=True)
+        try:
+            units = _zero_pose_units(arm, ask, seconds)
+        finally:
+            arm.stream(servos=False)
+        arm.torque(True)                  # held where the hands left it
+        directions = []
+        for j, question in enumerate(DIRECTION_QUESTIONS, 1):
+            arm.jog(j, units=JOG_UNITS)
+            directions.append(1 if _ask_reading(arm, confirm, question) else -1)
+            arm.jog(j, units=-JOG_UNITS)
+        arm.disengage()                   # (from a jogged pose: parks)
     for j, (u, d, s) in enumerate(zip(units, directions, model.servos), 1):
         print(f"joint {j}: zero {u} units (was {s.zero}), direction {d:+d} (was {s.direction:+d})")
     values = {}
@@ -260,19 +271,21 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S) -> b
     ask(f"Each joint will turn {np.degrees(LAG_JOG_RAD):.0f} deg and back at the park speed, one at a time, "
         "with nothing touching the arm. Keep clear and press Enter.")
     q = [hb["q1"], hb["q2"], hb["q3"]]
-    arm.stream(servos=True)
     fits = []
-    try:
-        for j, limit in enumerate(model.limits, 1):
-            middle = np.radians((limit.min_deg + limit.max_deg) / 2)
-            out = q[j - 1] + (LAG_JOG_RAD if middle >= q[j - 1] else -LAG_JOG_RAD)
-            records = [_jog_record(arm, j, out, seconds), _jog_record(arm, j, q[j - 1], seconds)]
-            f = fit.fit_servo_lag(records, j)
-            print(f"joint {j}: {f.lag * 1000:.1f} ms behind the jog's goal (fit rms {f.rms_units:.2f} units over "
-                  f"{sum(len(r[0]) for r in records)} readings)")
-            fits.append(f)
-    finally:
-        arm.stream(servos=False)
+    with arm.kept_alive():
+        arm.stream(servos=True)
+        try:
+            for j, limit in enumerate(model.limits, 1):
+                middle = np.radians((limit.min_deg + limit.max_deg) / 2)
+                out = q[j - 1] + (LAG_JOG_RAD if middle >= q[j - 1] else -LAG_JOG_RAD)
+                records = [_jog_record(arm, j, out, seconds), _jog_record(arm, j, q[j - 1], seconds)]
+                f = fit.fit_servo_lag(records, j)
+                print(f"joint {j}: {f.lag * 1000:.1f} ms behind the jog's goal (fit rms {f.rms_units:.2f} units "
+                      f"over {sum(len(r[0]) for r in records)} readings)")
+                fits.append(f)
+        finally:
+            arm.stream(servos=False)
+        arm.disengage()                   # (from the jogged pose it started at: parks)
     # At the jog's speed the servo's speed limit equals the goal's ramp, so its profile reaches
     # each tick's goal only as the next is sent: one tick of the lag is the jog's, not the
     # servo's (following the tilt, at the working speed, it catches up within the tick).
@@ -321,7 +334,8 @@ def link(arm, model_path: Path, ask, confirm, seconds: float = LINK_SECONDS, ups
     model = config.load(model_path)
     arm.next_heartbeat()
     ask(f"The link's delay will be measured for {seconds:g} s ({PING_RATE_HZ:.0f} pings a second); "
-        "the arm may be in any state. Press Enter.")
+        "the arm may be in any state (pings keep nothing alive: an engaged, limp or jogged arm parks). "
+        "Press Enter.")
     # long enough for the answers of any link the estimator could use
     exchanges, sent = _round_trips(arm, seconds, wait=2 * model.estimator.link_delay_max + 0.1)
     d = fit.fit_link_delay(exchanges, sent)

@@ -131,6 +131,14 @@ class Turning:
         return tuple(self.orientation(t)[2]), tuple(self._progress(t)[1] * np.asarray(self.turn, dtype=float))
 
 
+def reset_cause_value(cause: str) -> int:
+    """The heartbeat's reset_cause of a RESET_CAUSES name."""
+    causes = [name for name, _ in messages.RESET_CAUSES]
+    if cause not in causes:
+        raise ValueError(f"reset cause {cause!r}: one of {causes}")
+    return causes.index(cause)
+
+
 class SimBoard:
     """model: the model the firmware was generated from; servos: AX12 objects (default: one
     per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
@@ -202,7 +210,23 @@ class SimBoard:
         self.app = self.ffi.new("app_t *")
         self._clock()
         self.lib.app_init(self.app, self.ffi.addressof(self.hp, "port"))
-        self.app.reset_cause = [name for name, _ in messages.RESET_CAUSES].index("power_on")   # as after power-up
+        self.app.reset_cause = reset_cause_value("power_on")   # as after power-up
+
+    def reset(self, cause: str = "watchdog", last_fault: int = 0) -> None:
+        """The chip resets (its watchdog, or a fault that halted it: `last_fault`, the exception
+        number): the firmware starts again from app_init, the servo supply off (its switch's pin
+        is low from reset), the bytes in the link's and the servo bus's queues lost; the board
+        then reports `cause` (a RESET_CAUSES name) and `last_fault`. The IMU and the servos are
+        chips of their own: they run on (the servos lose their supply)."""
+        value = reset_cause_value(cause)
+        hp = self.hp
+        for fifo in (hp.link_in, hp.link_out, hp.servo_in, hp.servo_out):
+            fifo.head = fifo.len = 0
+        hp.servo_tx_active = False
+        self.lib.app_init(self.app, self.ffi.addressof(self.hp, "port"))
+        self.app.reset_cause = value
+        self.app.last_fault = last_fault
+        self._collect()
 
     # ------------------------------------------------------------------ inputs
 

@@ -30,7 +30,7 @@ import tty
 from collections import deque
 
 from .ax12_sim import AX12, AX12Bus
-from .board import Gravity, Rocking, SimBoard
+from .board import Gravity, Rocking, SimBoard, reset_cause_value
 from .imu_model import Mpu6050Sensor
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
@@ -104,6 +104,7 @@ class Sitl:
         self.max_lag = 0.0               # and at most, since it started
         self._lag_told = None            # (wall time, board us) of the last lag report
         self._clock_seen = (0, time.monotonic())
+        self._resets: deque[tuple[str, int]] = deque()      # asked of the board's thread
 
     def start(self) -> "Sitl":
         """run() in a daemon thread; stop() ends it."""
@@ -115,6 +116,12 @@ class Sitl:
         self._stop.set()
         if self._thread is not None and self._thread is not threading.current_thread():
             self._thread.join(timeout=10)
+
+    def reset(self, cause: str = "watchdog", last_fault: int = 0) -> None:
+        """Reset the simulated chip (SimBoard.reset) between two slices of its run, as its
+        watchdog or a fault would: the port stays open, the heartbeats start again from zero."""
+        reset_cause_value(cause)               # (a bad name raises here, not in the board's thread)
+        self._resets.append((cause, last_fault))
 
     def clock(self) -> float:
         """The board's simulated time (s), for a link client in this process to keep
@@ -173,6 +180,8 @@ class Sitl:
         try:
             while not self._stop.is_set():
                 target_us = round((time.monotonic() - start) * self.speed * 1e6)
+                while self._resets:
+                    self.board.reset(*self._resets.popleft())
                 self._read_input()
                 end_us = min(target_us, self.board.now_us + round(SLICE_S * 1e6))
                 self._run_until_us(end_us)

@@ -14,7 +14,8 @@
  * is kept) or, engaged, without a clear route (refused, "motion blocked"). While engaged, a
  * target that the current tilt puts out of reach is followed to the nearest point the
  * arm's branch reaches and flagged. An engaged arm whose link is silent for the model's
- * timeout parks and flags "link lost".
+ * timeout parks and flags "link lost"; so does a limp or jogged one (torque on first). Every
+ * frame sent to the arm keeps the link alive but ping, which is answered and nothing more.
  * An engaged arm also parks when the IMU gives no usable sample for APP_IMU_STALE_TICKS
  * ticks (absent, not sampling, or at full scale) or a servo stops following its goal
  * (servo_track.h); engage is refused while either stands.
@@ -26,7 +27,10 @@
  * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
  * as they stand.
  *
- * Service (for bring-up and calibration; refused while engaged, taken while enabled):
+ * Service (for bring-up and calibration; refused while engaged or flying, taken while enabled).
+ * Flying: a drone_attitude or drone_velocity came within the link's silence timeout; each
+ * ends a service state (torque on, park) and stops the streams. set_position is no sign of
+ * flight: it is also the keep-alive of a calibration on the bench.
  *   torque 0/1       limp (torque off, supply on, positions still read) and back on,
  *                    holding where the arm stands; engage, engage 0 (park) and jog also
  *                    turn it back on
@@ -57,7 +61,7 @@ extern "C" {
 #endif
 
 /* cffi:begin */
-#define APP_FIRMWARE_VERSION 0x000400u   /* 0.4.0: major, minor, patch bytes (the heartbeat's "firmware") */
+#define APP_FIRMWARE_VERSION 0x000500u   /* 0.5.0: major, minor, patch bytes (the heartbeat's "firmware") */
 #define APP_IMU_RETRY_MS 1000
 #define APP_CLOCK_STALL_TICKS 3        /* ticks in a row with the microsecond clock standing still */
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
@@ -87,6 +91,8 @@ typedef struct {
     bool motion_refused;           /* no clear route for the last move asked (until the next) */
     bool parked;                   /* the arm has been at the park pose since enable */
     bool link_lost;                /* latched until engage */
+    bool flying;                   /* a drone_attitude or drone_velocity came at last_drone_us, ... */
+    uint32_t last_drone_us;        /* ... within the link's silence timeout: no service commands */
     bool servo_config_failed;      /* latched until enable */
     float set_position[3];         /* level frame, mm */
     bool set_on_axis;              /* ... on joint 1's axis: joint 1 holds while following */

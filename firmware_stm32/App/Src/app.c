@@ -123,13 +123,14 @@ static void on_set_position(app_t *app, const msg_set_position_t *m)
         refuse(app, MSG_REFUSAL_NOT_FINITE);
         return;
     }
-    taken(app);
+    /* a repeated set position (keep-alive) changes nothing, not even the last refusal; a new
+     * one, engaged and past the park that engage begins with, needs a route now (during that
+     * park it is only stored: the arm heads for it once parked, as for the set position
+     * engage found) */
+    const bool moved = memcmp(p, app->set_position, sizeof p) != 0;
+    if (moved) taken(app);
     app->unreachable = !motion_goal_for(&app->motion, p, q);   /* from a level base, with the goals' margin */
     if (app->unreachable) return;
-    /* a repeated set position (keep-alive) changes nothing; a new one, engaged and past the
-     * park that engage begins with, needs a route now (during that park it is only stored:
-     * the arm heads for it once parked, as for the set position engage found) */
-    const bool moved = memcmp(p, app->set_position, sizeof p) != 0;
     if (moved && app->engaged && app->parked && !head_for(app, p)) {
         refuse(app, MSG_REFUSAL_NO_ROUTE);
         return;
@@ -144,6 +145,7 @@ static void on_set_position(app_t *app, const msg_set_position_t *m)
 static uint8_t service_refusal(const app_t *app)
 {
     if (app->engaged) return MSG_REFUSAL_ENGAGED;
+    if (app->flying) return MSG_REFUSAL_FLYING;
     if (!app->enabled) return MSG_REFUSAL_NOT_ENABLED;
     if (app->bus.state != SBUS_RUNNING) return MSG_REFUSAL_SERVOS_STARTING;
     return MSG_REFUSAL_NONE;
@@ -234,11 +236,66 @@ static void on_stream(app_t *app, const msg_stream_t *m)
         refuse(app, MSG_REFUSAL_ENGAGED);
         return;
     }
+    if (app->flying && (m->imu_every != 0u || m->servos != 0u)) {
+        refuse(app, MSG_REFUSAL_FLYING);   /* the link is the flight's */
+        return;
+    }
     taken(app);
     app->stream_imu_every = m->imu_every;
     app->stream_imu_ticks = 0;
     app->stream_servos = m->servos != 0u;
     app->servo_reads_streamed = app->bus.status_reads;   /* from the next reading on */
+}
+
+/* ------------------------------------------------------------------ bench and flight */
+
+/* Limp, at or on its way to a jogged or held pose, or about to be (the torque coming back on). */
+static bool in_service(const app_t *app)
+{
+    return app->bus.limp || app->jog || app->start_to != APP_START_PARK;
+}
+
+/* Out of a service state: the torque on and to the park pose by a checked route; false if
+ * the arm was in none. */
+static bool end_service(app_t *app)
+{
+    if (!in_service(app)) return false;
+    if (app->bus.limp) torque_on(app, APP_START_PARK);   /* (motion starts from the readings) */
+    app->start_to = APP_START_PARK;
+    if (app->jog) {
+        app->jog = false;
+        disengage(app);
+    }
+    return true;
+}
+
+/* A message of the drone's flight controller (drone_attitude, drone_velocity) at `now`: the
+ * drone may be flying, so no bench: a service state ends and the streams stop. */
+static void drone_heard(app_t *app, uint32_t now)
+{
+    app->flying = true;
+    app->last_drone_us = now;
+    (void)end_service(app);
+    app->stream_imu_every = 0;
+    app->stream_servos = false;
+}
+
+/* The link silent for its timeout: an engaged arm, or one in a service state, parks with the
+ * torque on (whoever held it there is gone). */
+static void link_silent(app_t *app)
+{
+    if (app->engaged) disengage(app);
+    else if (!end_service(app)) return;
+    app->link_lost = true;
+}
+
+/* From the main loop: the drone's messages stopped for the link's silence timeout, no longer
+ * flying; every frame stopped that long, link_silent. */
+static void watch_link(app_t *app, uint32_t now)
+{
+    static const uint32_t SILENCE_US = MODEL_LINK_SILENCE_MS * 1000u;
+    if (app->flying && now - app->last_drone_us > SILENCE_US) app->flying = false;
+    if (now - app->last_frame_us > SILENCE_US) link_silent(app);
 }
 
 /* Why engage would be refused now, or MSG_REFUSAL_NONE: it needs the servos configured,
@@ -329,13 +386,16 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
     } else if (msg_set_position_unpack(payload, len, &set)) {
         on_set_position(app, &set);
     } else if (msg_drone_attitude_unpack(payload, len, &attitude)) {
+        const uint32_t now = now_us(app);
         app->drone_attitudes++;
-        (void)stab_drone_attitude(&app->stab, attitude.seq, attitude.stamp_us, attitude.roll, attitude.pitch,
-                                  now_us(app));
+        drone_heard(app, now);
+        (void)stab_drone_attitude(&app->stab, attitude.seq, attitude.stamp_us, attitude.roll, attitude.pitch, now);
     } else if (msg_drone_velocity_unpack(payload, len, &velocity)) {
         const float v_level[3] = { velocity.vx, velocity.vy, velocity.vz };
+        const uint32_t now = now_us(app);
         app->drone_velocities++;
-        (void)stab_drone_velocity(&app->stab, velocity.seq, velocity.stamp_us, v_level, now_us(app));
+        drone_heard(app, now);
+        (void)stab_drone_velocity(&app->stab, velocity.seq, velocity.stamp_us, v_level, now);
     } else if (msg_jog_unpack(payload, len, &jog)) {
         on_jog(app, &jog);
     } else if (msg_torque_unpack(payload, len, &torque)) {
@@ -344,11 +404,12 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         on_stream(app, &stream);
     } else if (msg_ping_unpack(payload, len, &ping)) {
         send_pong(app, &ping);
+        return;   /* answered, but no sign of the drone's controller: keeps nothing alive */
     } else {
         app->commands_ignored++;
         return;
     }
-    app->last_frame_us = now_us(app);   /* a message from the drone: the link is alive */
+    app->last_frame_us = now_us(app);   /* a frame sent to the arm: the link is alive */
 }
 
 /* A millisecond clock for the link receiver that wraps at 2^32 ms like llcp.h expects.
@@ -803,10 +864,7 @@ void app_poll(app_t *app)
     }
 
     const uint32_t now = now_us(app);
-    if (app->engaged && now - app->last_frame_us > MODEL_LINK_SILENCE_MS * 1000u) {
-        disengage(app);
-        app->link_lost = true;
-    }
+    watch_link(app, now);
     if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) {
         app->last_heartbeat_us += MODEL_HEARTBEAT_MS * 1000u;
         if (now - app->last_heartbeat_us >= MODEL_HEARTBEAT_MS * 1000u) app->last_heartbeat_us = now;

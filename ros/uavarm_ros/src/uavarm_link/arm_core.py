@@ -1,7 +1,9 @@
 """What the drone-side node does, without ROS: the port (opened, lost and reopened every
 second), each loop step (the heartbeats in; the drone's attitude and velocity, or a keep-alive,
 out), the
-status a heartbeat gives, and commands answered once a heartbeat confirms them. The ROS 1
+status a heartbeat gives, and commands answered once a heartbeat confirms them. A board that
+restarts while enabled after a watchdog reset or a fault comes up limp: an error, and (unless
+reenable is off) enable is sent again so that it parks; it is never engaged again by itself. The ROS 1
 node (ros_node) is an adapter around it: parameters, topics, services, log; a ROS 2 node
 would be another.
 
@@ -15,7 +17,7 @@ import threading
 import time
 from typing import Callable, Optional, Tuple
 
-from .client import CommandRefused, LinkError, PortNotFound
+from .client import CommandRefused, LinkError, PortNotFound, RestartWatch
 from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
 from .shared import SharedLink
 
@@ -62,10 +64,12 @@ def describe(hb: dict) -> str:
             f"faults {fault_names(hb['faults'])}")
 
 
-def status_of(hb: dict, attitude_source: str, velocity_source: str = "none") -> dict:
-    """A heartbeat as the node reports it: SI units (m, s), names for codes."""
+def status_of(hb: dict, attitude_source: str, velocity_source: str = "none", unexpected_resets: int = 0) -> dict:
+    """A heartbeat as the node reports it: SI units (m, s), names for codes; unexpected_resets:
+    the board's restarts while enabled after a watchdog reset or a fault (RestartWatch)."""
     return {
         "attitude_source": attitude_source, "velocity_source": velocity_source,
+        "unexpected_resets": unexpected_resets,
         "enabled": bool(hb["enabled"]), "engaged": bool(hb["engaged"]), "unreachable": bool(hb["unreachable"]),
         "seq": hb["seq"], "uptime": hb["uptime_ms"] / 1000.0, "state": hb["state"],
         "refusal": REFUSALS[hb["refusal"]][0] if 0 < hb["refusal"] < len(REFUSALS) else "",
@@ -85,13 +89,15 @@ class ArmCore:
 
     def __init__(self, port: str, baud: int, log, on_status: Callable[[dict], None], *,
                  attitude_timeout: float = 0.2, keep_alive: bool = True, keep_alive_period: float = 0.2,
-                 attitude_topic: str = "the attitude topic", clock=time.monotonic):
-        """clock: the link's (ArmLink's); step(now) and the inputs' times are on it."""
+                 attitude_topic: str = "the attitude topic", reenable: bool = True, clock=time.monotonic):
+        """clock: the link's (ArmLink's); step(now) and the inputs' times are on it; reenable:
+        enable a board that restarted while enabled (RestartWatch) again."""
         import serial
         self.port, self.baud, self.log, self.on_status = port, baud, log, on_status
         self.clock = clock
         self.attitude_timeout, self.keep_alive, self.keep_alive_period = attitude_timeout, keep_alive, keep_alive_period
-        self.attitude_topic = attitude_topic
+        self.attitude_topic, self.reenable = attitude_topic, reenable
+        self.restarts = RestartWatch()            # across reopenings: a real board's port goes as it resets
         self._serial_errors = (serial.SerialException, OSError)
         self.link: Optional[SharedLink] = None
         self.link_error = "not opened yet"
@@ -207,7 +213,15 @@ class ArmCore:
         if self._silent:
             self.log.info("arm: heartbeats back")
         self._silent, self._last_hb_time = False, now
-        if self.link.age.restarts > self._restarts:
+        unmeant = self.restarts.check(hb)
+        if unmeant is not None:
+            self._restarts = self.link.age.restarts
+            if self.reenable:
+                self.link.send("enable", on=1)
+                self.log.error(f"arm: {unmeant}; enable sent again: it parks (call engage again when ready)")
+            else:
+                self.log.error(f"arm: {unmeant}; left so (reenable is off): enable it again to park it")
+        elif self.link.age.restarts > self._restarts:
             self._restarts = self.link.age.restarts
             self.log.warn(f"arm: the board restarted (its uptime went back to {hb['uptime_ms'] / 1000.0:.1f} s; "
                           f"reset cause {reset_cause_name(hb['reset_cause'])}"
@@ -217,7 +231,7 @@ class ArmCore:
             if name not in before:
                 self.log.warn(f"arm: fault {name}: {FAULT_TEXT[name]}")
         self._last_hb = hb
-        self.on_status(status_of(hb, self.attitude_source, self.velocity_source))
+        self.on_status(status_of(hb, self.attitude_source, self.velocity_source, self.restarts.count))
 
     # ---------------------------------------------------------------- commands
 

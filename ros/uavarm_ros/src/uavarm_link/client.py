@@ -9,16 +9,19 @@
 Every command is confirmed by the heartbeats (sent every 0.5 s): the call returns when a
 heartbeat shows the command took effect, raises CommandRefused when the board's flags say
 why it did not, and LinkSilent when no heartbeat comes at all (LinkGarbled: bytes come but
-no valid frame; LinkLate: valid heartbeats come, all too late to trust). An engaged arm parks if the
-link is silent for the model's link.silence_timeout, so a drone keeps sending: `keep_alive()`
-repeats the current set position (only while no new target is being set).
+no valid frame; LinkLate: valid heartbeats come, all too late to trust). An engaged, limp or
+jogged arm parks if the link is silent for the model's link.silence_timeout (a ping does not
+count), so a drone keeps sending: `keep_alive()` repeats the current set position (only while
+no new target is being set), and within `with arm.kept_alive():` every poll does so once
+nothing was sent for KEEP_ALIVE_S (the calibrations on the bench).
 
 Only fresh heartbeats count: each carries a sequence number and the board's uptime, and one
 that arrives more than a heartbeat period later than the board's clock says it should (queued
 while no one read the port) is dropped and counted, never used to confirm a command. None can
 have waited longer than since the port was last read empty, so a board whose clock runs slow
 (a simulated board behind real time) is not taken for one whose heartbeats queued. Gaps in
-the sequence and board restarts (uptime going back) are counted too.
+the sequence and board restarts (uptime going back) are counted too; RestartWatch tells the
+restarts that leave an arm limp (its watchdog or a fault reset it while it was enabled).
 
 Time is this computer's monotonic clock, or `clock` (a function returning seconds): a
 simulated board in the same process (uavarm.sim.sitl) lends its own, so that timeouts and
@@ -26,6 +29,7 @@ ages count in the time it keeps.
 """
 from __future__ import annotations
 
+import contextlib
 import math
 import struct
 import time
@@ -33,7 +37,7 @@ from collections import deque
 
 from . import llcp, messages
 from .message_table import HEARTBEAT_PERIOD_S
-from .messages import fault_names, refusal_reason
+from .messages import fault_names, fault_vector_name, refusal_reason, reset_cause_name
 
 try:
     from termios import error as _TermiosError
@@ -45,6 +49,11 @@ except ImportError:      # (not POSIX)
 CONFIRM_HEARTBEATS = 2
 # bytes taken from the port in one poll at most (about 400 heartbeats)
 READ_LIMIT = 65536
+# s between keep-alives: the board parks an engaged, limp or jogged arm after
+# link.silence_timeout (1 s) without a frame
+KEEP_ALIVE_S = 0.2
+# the resets a board does not mean (heartbeat.reset_cause): an enabled arm comes up limp
+UNMEANT_RESETS = ("watchdog", "window_watchdog")
 
 
 class LinkError(Exception):
@@ -142,6 +151,30 @@ class HeartbeatAge:
         return self.last[2]
 
 
+class RestartWatch:
+    """Tells when a board restarted while it was enabled because its watchdog reset it or a
+    fault halted it (the heartbeat's uptime went back; reset_cause, last_fault): it comes up
+    with the servo supply off, the arm hanging limp. Fed every fresh heartbeat, of one link or
+    of several in turn to the same board (a real board's USB port goes away as it resets)."""
+
+    def __init__(self):
+        self.last = None           # the previous heartbeat
+        self.count = 0             # such restarts seen
+
+    def check(self, hb: dict) -> str | None:
+        """What to report if hb shows such a restart, else None."""
+        last, self.last = self.last, hb
+        went_back = last is not None and (hb["uptime_ms"] - last["uptime_ms"]) & 0xFFFFFFFF >= 1 << 31
+        cause = reset_cause_name(hb["reset_cause"])
+        if not (went_back and last["enabled"] and (cause in UNMEANT_RESETS or hb["last_fault"])):
+            return None
+        self.count += 1
+        after = f" after a {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
+        return (f"the board restarted while enabled (reset cause {cause}{after}, up {hb['uptime_ms'] / 1000:.1f} s "
+                f"again): it came up with the servo power off, the arm limp"
+                + ("; it was engaged" if last["engaged"] else ""))
+
+
 class ArmLink:
     """port: a device path (or a pyserial URL, or an open serial object for tests); silence:
     seconds without a heartbeat that count as a dead link (default: three heartbeat periods
@@ -168,6 +201,8 @@ class ArmLink:
         self.pongs: deque[tuple[dict, float]] = deque(maxlen=10_000)   # (pong, self.clock() read)
         self.bytes_received = 0
         self._emptied_at = None    # when a read last left the port empty
+        self.last_sent = -math.inf  # clock() when a frame was last sent
+        self.keep_alive_every = None   # s: each poll repeats the set position after this long unsent
         self._attitude_seq = 0
         self._velocity_seq = 0
 
@@ -206,7 +241,20 @@ class ArmLink:
                 self.pongs.append((fields, now))
         new = self.age.fresh(batch, now, read_gap)
         self.heartbeats.extend(new)
+        if self.keep_alive_every is not None and now - self.last_sent >= self.keep_alive_every:
+            self.keep_alive()
         return new
+
+    @contextlib.contextmanager
+    def kept_alive(self, every: float = KEEP_ALIVE_S):
+        """Within: each poll (every wait for a heartbeat, a stream or the user, if it polls)
+        repeats the set position once nothing was sent for `every` s, so a limp, jogged or
+        engaged arm stays so while this program runs."""
+        before, self.keep_alive_every = self.keep_alive_every, every
+        try:
+            yield self
+        finally:
+            self.keep_alive_every = before
 
     def next_heartbeat(self, timeout: float | None = None) -> dict:
         """Wait for the next fresh heartbeat (the newest if several came at once); LinkSilent
@@ -252,6 +300,8 @@ class ArmLink:
             self.serial.flush()
         except _TermiosError as exc:     # pyserial lets tcdrain's error through: a port that went away
             raise OSError(*exc.args) from None
+        if name != "ping":               # (a ping keeps nothing alive)
+            self.last_sent = self.clock()
 
     def _confirm(self, ok, why) -> dict:
         """Wait for a heartbeat satisfying ok(hb); CommandRefused with why(hb) otherwise."""
@@ -370,7 +420,8 @@ class ArmLink:
         return sent
 
     def keep_alive(self) -> None:
-        """Repeat the board's current set position, so an engaged arm does not park."""
+        """Repeat the board's current set position, so an engaged, limp or jogged arm does not
+        park (the board takes it as no new command: the last refusal stands)."""
         if self.heartbeats:
             hb = self.heartbeats[-1]
             self.send("set_position", x=hb["set_x"], y=hb["set_y"], z=hb["set_z"])

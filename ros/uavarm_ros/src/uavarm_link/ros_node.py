@@ -7,7 +7,9 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   the command taken (uavarm.link.ArmLink), or success false with the board's reason: "engage
   refused: the arm is not enabled", "... refused: unreachable ...", "no heartbeat ...".
 - `~status` (uavarm_ros/ArmStatus): every fresh heartbeat (the link drops those queued longer
-  than a heartbeat period; a board restart is logged as a warning). A message of this package
+  than a heartbeat period; a board restart is logged as a warning, and as an error if it was
+  enabled and its watchdog or a fault reset it: it came up limp, `unexpected_resets` counts
+  it, and unless `~reenable` is false enable is sent again so that it parks, never engaged). A message of this package
   rather than diagnostic_msgs key/value strings, so consumers get typed fields (flags, joints,
   set position, counters) and the fault bits by name; its header's frame_id is `arm_base`
   (the URDF's), `attitude_source` says whether the drone's attitude is being forwarded
@@ -29,6 +31,7 @@ Interface (private names, under the node: /<uav_name>/arm/...):
 
 Parameters: `~port` (/dev/ttyACM0), `~baud` (115200), the attitude ones above,
 `~keep_alive` (true), `~keep_alive_period` (0.2 s; the board parks after 1 s of silence),
+`~reenable` (true: enable a board that restarted while enabled, above),
 `~parent_frame` (none: the drone's body frame, published as the same place as the URDF's
 root `uav_frame`, so the arm hangs in the drone's TF tree).
 
@@ -219,7 +222,8 @@ class ArmNode:
                             attitude_timeout=float(rospy.get_param("~attitude_timeout", 0.2)),
                             keep_alive=bool(rospy.get_param("~keep_alive", True)),
                             keep_alive_period=float(rospy.get_param("~keep_alive_period", 0.2)),
-                            attitude_topic=rospy.resolve_name(topic))
+                            attitude_topic=rospy.resolve_name(topic),
+                            reenable=bool(rospy.get_param("~reenable", True)))
         self.status_pub = rospy.Publisher("~status", msg.ArmStatus, queue_size=10)
         self.joint_pub = rospy.Publisher("joint_states", JointState, queue_size=10)   # robot_state_publisher's
         self._joint_state = JointState

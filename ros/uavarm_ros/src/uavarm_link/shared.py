@@ -1,9 +1,8 @@
 """ArmLink for several threads (the ROS node's services, `uavarm link PORT shell`): one loop
-reads the port and keeps an engaged arm alive while other threads wait for the heartbeats that
+reads the port and keeps the arm alive while other threads wait for the heartbeats that
 confirm their commands."""
 from __future__ import annotations
 
-import math
 import threading
 
 from .client import ArmLink, LinkError
@@ -19,7 +18,6 @@ class SharedLink(ArmLink):
         self.count = 0            # heartbeats received so far
         self.broken = None        # why the port failed, once it has
         self.pending = None       # the set position of a set_position command in flight
-        self.last_sent = -math.inf
 
     @property
     def engaged(self) -> bool:
@@ -32,7 +30,6 @@ class SharedLink(ArmLink):
             if name == "set_position":
                 self.pending = (fields["x"], fields["y"], fields["z"])
             super().send(name, **fields)
-            self.last_sent = self.clock()
 
     def poll(self) -> list[dict]:
         with self.cond:
@@ -74,7 +71,6 @@ class SharedLink(ArmLink):
             else:
                 return
             ArmLink.send(self, "set_position", x=x, y=y, z=z)
-            self.last_sent = self.clock()
 
     def fail(self, why: str) -> None:
         with self.cond:

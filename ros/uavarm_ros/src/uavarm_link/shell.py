@@ -1,11 +1,14 @@
 """`uavarm link PORT shell [FILE]`: one connection for a whole session. Commands come from a
-prompt, a script file or standard input, while a background loop reads the heartbeats and,
-while the arm is engaged, repeats the set position so that it stays engaged between commands.
+prompt, a script file or standard input, while a background loop reads the heartbeats and
+repeats the set position so that an engaged, limp or jogged arm stays so between commands
+(the board parks it after link.silence_timeout without a frame). A board that restarts while
+enabled after a watchdog reset or a fault (it comes up limp) is an error: said at once and,
+unless reenable is off, enabled again so that it parks; it is never engaged again by itself.
 
 A line is a command (COMMANDS below) or a target: three numbers in mm, comma or space
 separated, optionally a fourth, the seconds to hold it (a CSV of targets is a valid script).
 At a prompt a failed command prints `error: ...` and the session goes on; from a file or a
-pipe the first failure ends it with `error: line N: ...` and exit code 1.
+pipe the first failure (or such a restart) ends it with `error: line N: ...` and exit code 1.
 """
 from __future__ import annotations
 
@@ -15,11 +18,10 @@ import sys
 import threading
 import time
 
-from .client import LinkError
+from .client import KEEP_ALIVE_S, LinkError, RestartWatch
 from .messages import fault_names, state_name
 from .shared import SharedLink
 
-KEEP_ALIVE_S = 0.2           # the board parks an engaged arm after link.silence_timeout (1 s)
 POLL_S = 0.02
 
 COMMANDS = {
@@ -30,9 +32,10 @@ COMMANDS = {
     "goto X Y Z [S]": "set position in mm (level frame at the arm's base); hold S seconds",
     "wait S": "hold S seconds (heartbeats and keep-alive go on)",
     "status": "print the next heartbeat",
-    "limp / stiff / jog J DEG": "service commands (not engaged): torque off / on, joint J to DEG",
+    "limp / stiff / jog J DEG": "service commands (not engaged, the drone not flying): torque off / on, "
+                                "joint J to DEG",
     "help": "this list",
-    "quit": "end the session (an engaged arm parks after the link falls silent)",
+    "quit": "end the session (an engaged, limp or jogged arm parks after the link falls silent)",
 }
 
 
@@ -83,14 +86,19 @@ def status_line(hb: dict) -> str:
 
 
 class Session:
-    """The open link, its heartbeat loop and the commands."""
+    """The open link, its heartbeat loop and the commands. err: where a restart is said at once
+    (None: only by restart_error); reenable: enable a board that restarted while enabled."""
 
-    def __init__(self, port: str, baud: int, out, clock=time.monotonic):
+    def __init__(self, port: str, baud: int, out, clock=time.monotonic, err=None, reenable: bool = True):
         self.link = SharedLink(port, baud, clock=clock)
-        self.out = out
+        self.link.keep_alive_every = KEEP_ALIVE_S          # each poll of the loop keeps the arm alive
+        self.out, self.err, self.reenable = out, err, reenable
         self._stop = threading.Event()
         self._shown = None
         self.loop_error = None
+        self.restarts = RestartWatch()
+        self.restart_error = None          # the last such restart, said
+        self._say_lock = threading.Lock()
         self._thread = threading.Thread(target=self._loop, daemon=True)
         self._thread.start()
 
@@ -100,20 +108,37 @@ class Session:
             try:
                 for hb in link.poll():
                     self._show_changes(hb)
-                if link.engaged and link.clock() - link.last_sent >= KEEP_ALIVE_S:
-                    link.keep_alive()
+                    self._watch_restart(hb)
             except (LinkError, OSError) as exc:               # (serial.SerialException too)
                 self.loop_error = str(exc)
                 link.fail(f"the serial port failed ({exc}): unplugged, or the SITL stopped?")
                 return
             time.sleep(POLL_S)
 
+    def _watch_restart(self, hb: dict) -> None:
+        text = self.restarts.check(hb)
+        if text is None:
+            return
+        if self.reenable:
+            self.link.send("enable", on=1)
+            text += "; enabled again: it parks (engage again when ready)"
+        else:
+            text += "; left so (--no-reenable)"
+        self.restart_error = text
+        if self.err is not None:
+            self.say(f"error: {text}", self.err)
+
     def _show_changes(self, hb: dict) -> None:
         """The live status: a line whenever the state or the faults change."""
         key = (hb["state"], hb["faults"])
         if key != self._shown:
             self._shown = key
-            print(status_line(hb), file=self.out, flush=True)
+            self.say(status_line(hb), self.out)
+
+    def say(self, text: str, file) -> None:
+        """Print one whole line (the loop and the commands print from two threads)."""
+        with self._say_lock:
+            print(text, file=file, flush=True)
 
     def run(self, name: str, numbers: list[float]) -> str | None:
         """Do one command; the line to print, or None. LinkError (CommandRefused too) if the
@@ -147,6 +172,8 @@ class Session:
         while clock() < end:
             if self.link.broken:
                 raise LinkError(f"serial link lost: {self.link.broken}")
+            if self.err is None and self.restart_error:
+                raise LinkError(self.restart_error)
             time.sleep(POLL_S)   # (a poll's interval: the link's clock says when the hold ends)
 
     def close(self) -> None:
@@ -158,17 +185,20 @@ class Session:
             pass
 
 
-def run_shell(port: str, baud: int, lines, interactive: bool, out=None, err=None, clock=time.monotonic) -> int:
+def run_shell(port: str, baud: int, lines, interactive: bool, out=None, err=None, clock=time.monotonic,
+              reenable: bool = True) -> int:
     """Run the lines (an iterable of str) on one connection; the exit code. clock: the link's
-    (ArmLink's), for the holds too."""
+    (ArmLink's), for the holds too; reenable: enable a board that restarted while enabled."""
     out, err = out or sys.stdout, err or sys.stderr
-    session = Session(port, baud, out, clock)
+    session = Session(port, baud, out, clock, err=err if interactive else None, reenable=reenable)
+    number = 0
     try:
         if interactive:
-            print("commands: enable, engage, goto X Y Z, disengage, disable, status, wait S, help, quit",
-                  file=out, flush=True)
+            session.say("commands: enable, engage, goto X Y Z, disengage, disable, status, wait S, help, quit", out)
         for number, line in enumerate(lines, 1):
             try:
+                if not interactive and session.restart_error:
+                    raise LinkError(session.restart_error)
                 command = parse(line)
                 if command is None:
                     continue
@@ -176,17 +206,22 @@ def run_shell(port: str, baud: int, lines, interactive: bool, out=None, err=None
                     break
                 shown = session.run(*command)
                 if shown:
-                    print(shown, file=out, flush=True)
+                    session.say(shown, out)
             except (ShellError, LinkError) as exc:
                 if not interactive:
-                    print(f"error: line {number}: {exc}", file=err)
+                    session.say(f"error: line {number}: {exc}", err)
                     return 1
-                print(f"error: {exc}", file=err, flush=True)
+                session.say(f"error: {exc}", err)
                 if session.link.broken:
                     return 1
-        if session.link.engaged:
-            print("end of the session: the arm is engaged and parks once the link has been silent "
-                  "for its timeout", file=out)
+        if not interactive and session.restart_error:
+            session.say(f"error: line {number}: {session.restart_error}", err)
+            return 1
+        last = session.link.heartbeats[-1] if session.link.heartbeats else None
+        held = "engaged" if session.link.engaged else last and state_name(last["state"])
+        if held in ("engaged", "limp", "jogging", "jogged"):
+            session.say(f"end of the session: the arm is {held} and parks once the link has been silent for its "
+                        "timeout", out)
         return 0
     finally:
         session.close()
