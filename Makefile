@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: codegen test test-busy bench sim-report fuzz fuzz-long mutate clean
+.PHONY: codegen test test-long test-busy bench sim-report fuzz fuzz-long mutate clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv --system-site-packages $(VENV)
@@ -19,11 +19,16 @@ codegen: $(STAMP)
 # (their verdicts do not depend on the load: `make test-busy`). The second stage runs even
 # if the first failed; both stages' results are shown, and either failing fails the target.
 test: $(STAMP)
-	@$(PY) -m pytest -q -n auto --dist worksteal -m "not realtime"; computing=$$?; \
+	@$(PY) -m pytest -q -n auto --dist worksteal -m "not realtime and not long"; computing=$$?; \
 	$(PY) -m pytest -q -n auto --dist worksteal -m realtime; realtime=$$?; \
 	verdict() { [ $$1 -eq 0 ] && echo passed || echo "FAILED (pytest exit $$1)"; }; \
 	echo "make test: computing stage $$(verdict $$computing); real-time stage $$(verdict $$realtime)"; \
 	[ $$computing -eq 0 ] && [ $$realtime -eq 0 ]
+
+# The denser runs of checks make test makes (the safety grid's slowest servos on a 24 mm grid
+# of targets: about 3 minutes of one core).
+test-long: $(STAMP)
+	$(PY) -m pytest -q -n auto -m long
 
 # The real-time stage (SITL, link, calibrations, ROS) and the fuzz tests with two busy
 # processes beside them (CPU-bound loops at normal priority, stopped at the end): what makes

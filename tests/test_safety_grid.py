@@ -74,10 +74,11 @@ def start_poses(m):
 
 
 # The servos' physics the grid runs on: no lag at a full battery, the model file's lag at a
-# nominal one, 45 ms at a flat one (each servo reports the supply, sag included); the
-# slowest on the full 24 mm grid of targets, the others on every other point of it (48 mm)
+# nominal one, 45 ms at a flat one (each servo reports the supply, sag included), each on a
+# 48 mm grid of targets; the slowest also on the full 24 mm grid, eight times the runs, in
+# `make test-long`
 PHYSICS = [(0.0, 12.6), (config.load().servo_response_lag, 11.1), (0.045, 9.0)]
-SPACING_MM = {PHYSICS[0]: 48.0, PHYSICS[1]: 48.0, PHYSICS[2]: 24.0}
+GRIDS = [(physics, 48.0) for physics in PHYSICS] + [pytest.param((PHYSICS[2], 24.0), marks=pytest.mark.long)]
 
 
 class Out:
@@ -104,8 +105,8 @@ def run_grid(harness, start, targets, tilts, ticks, physics, out):
     return out.goals[:n].astype(np.float64), out.goal_run[:n], out.shafts[:k].astype(np.float64), out.c.refused
 
 
-@pytest.mark.parametrize("physics", PHYSICS, ids=lambda p: f"{p[0] * 1e3:.1f} ms {p[1]} V" if isinstance(p, tuple) else p)
-def test_every_commanded_move_is_safe_from_any_start(harness, physics):
+@pytest.mark.parametrize("grid", GRIDS, ids=lambda g: f"{g[0][0] * 1e3:.1f} ms {g[0][1]} V, {g[1]:.0f} mm")
+def test_every_commanded_move_is_safe_from_any_start(harness, grid):
     """Pairs: start poses x targets on a 24 mm or 48 mm grid (inside and beyond the reach) x
     tilts of 0 and +-30 deg about each axis; 60 ticks following, 60 ticks disengaging, the goals sent
     through the servo driver to servos that lag and slow with their supply. Each goal and the
@@ -113,10 +114,11 @@ def test_every_commanded_move_is_safe_from_any_start(harness, physics):
     time, sampled) pass the plain-geometry check, and so do the shafts themselves after every 1 ms
     step of the servos (in which one moved)."""
     ffi, lib = harness
+    physics, spacing = grid
     m = arm_spec.spec()      # the oracle's numbers, read apart from the generator
     reach = m.L1 + m.L2 + m.L3
-    xs = np.arange(-reach, reach + 0.1, SPACING_MM[physics])
-    zs = np.arange(-reach - 20.0, 20.1, SPACING_MM[physics])
+    xs = np.arange(-reach, reach + 0.1, spacing)
+    zs = np.arange(-reach - 20.0, 20.1, spacing)
     x, y, z = np.meshgrid(xs, xs, zs, indexing="ij")
     targets = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
     tilts = np.radians([[0, 0], [30, 0], [-30, 0], [0, 30], [0, -30]])

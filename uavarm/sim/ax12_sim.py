@@ -253,12 +253,14 @@ class AX12:
         return self.powered and abs(baud_of(self.register("baud_rate")) - bus_baud) <= 0.03 * bus_baud
 
     def condition_bits(self) -> int:
-        """Error bits of lasting conditions: voltage, temperature, overload."""
+        """Error bits of lasting conditions: voltage, temperature, overload. (By address, as
+        step(): it runs at every step.)"""
+        t = self.table
         bits = 0
         volts10 = round(self.voltage * 10)
-        if not self.register("min_voltage_limit") <= volts10 <= self.register("max_voltage_limit"):
+        if not t[12] <= volts10 <= t[13]:                          # Min / Max Voltage Limit
             bits |= ERR_VOLTAGE
-        if self.temperature > self.register("temperature_limit"):
+        if self.temperature > t[11]:                               # Temperature Limit
             bits |= ERR_OVERHEATING
         if self.overload:
             bits |= ERR_OVERLOAD
@@ -508,18 +510,24 @@ class AX12:
             self._pos = self._profile
 
     def _quantised(self) -> int:
-        return min(max(round(self._pos), 0), 1023)
+        q = round(self._pos)
+        return 0 if q < 0 else 1023 if q > 1023 else q
 
     def _update_present(self, start: float, dt: float) -> None:
         t = self.table
         q = self._quantised()
         t[36], t[37] = q & 0xFF, q >> 8                              # Present Position
         rate = (self._pos - start) / dt if dt > 0 else 0.0      # units/s, + = CCW
-        magnitude = min(round(abs(rate) / UNITS_PER_S_PER_RPM / RPM_PER_SPEED_UNIT), 1023)
-        speed = magnitude | (0x400 if rate < 0 else 0)
-        t[38], t[39] = speed & 0xFF, speed >> 8                      # Present Speed
-        t[42] = min(max(round(self.voltage * 10), 0), 255)           # Present Voltage
-        t[43] = min(max(round(self.temperature), 0), 255)            # Present Temperature
+        if rate:                                                # (a shaft at rest: 0, and quicker)
+            magnitude = min(round(abs(rate) / UNITS_PER_S_PER_RPM / RPM_PER_SPEED_UNIT), 1023)
+            speed = magnitude | (0x400 if rate < 0 else 0)
+            t[38], t[39] = speed & 0xFF, speed >> 8                  # Present Speed
+        else:
+            t[38] = t[39] = 0
+        volts10 = round(self.voltage * 10)
+        t[42] = 0 if volts10 < 0 else 255 if volts10 > 255 else volts10      # Present Voltage
+        degrees = round(self.temperature)
+        t[43] = 0 if degrees < 0 else 255 if degrees > 255 else degrees      # Present Temperature
         driven = t[24] and (t[34] or t[35])
         if not (t[6] or t[7] or t[8] or t[9]):
             moving = driven and ((t[32] | t[33] << 8) & 0x3FF) > 0
@@ -691,9 +699,12 @@ class AX12Bus:
 
     def _sag(self, before: list[float], dt: float) -> None:
         """The supply's voltage after an interval of dt in which the shafts moved from `before`."""
-        shares = [abs(s.position - p) / dt / s.max_speed() if s.powered and s.max_speed() > 0 else 0.0
-                  for s, p in zip(self.servos, before)]
-        volts = self.supply.sagged([x for s, x in zip(self.servos, shares) if s.powered])
+        shares = []
+        for s, p in zip(self.servos, before):
+            if s.powered:
+                cap = s.max_speed()
+                shares.append(abs(s.position - p) / dt / cap if cap > 0 else 0.0)
+        volts = self.supply.sagged(shares)
         for servo in self.servos:
             servo.voltage = volts
 
