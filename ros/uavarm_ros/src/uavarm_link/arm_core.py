@@ -17,7 +17,7 @@ import threading
 import time
 from typing import Callable, Optional, Tuple
 
-from .client import CommandRefused, LinkError, PortNotFound, RestartWatch
+from .client import KEEP_ALIVE_S, CommandRefused, LinkError, PortNotFound, RestartWatch
 from .messages import FAULTS, REFUSALS, fault_names, fault_vector_name, reset_cause_name
 from .shared import SharedLink
 
@@ -88,7 +88,7 @@ class ArmCore:
     REOPEN_PERIOD = 1.0
 
     def __init__(self, port: str, baud: int, log, on_status: Callable[[dict], None], *,
-                 attitude_timeout: float = 0.2, keep_alive: bool = True, keep_alive_period: float = 0.2,
+                 attitude_timeout: float = 0.2, keep_alive: bool = True, keep_alive_period: float = KEEP_ALIVE_S,
                  attitude_topic: str = "the attitude topic", reenable: bool = True, clock=time.monotonic):
         """clock: the link's (ArmLink's); step(now) and the inputs' times are on it; reenable:
         enable a board that restarted while enabled (RestartWatch) again."""

@@ -62,6 +62,7 @@ import time
 from pathlib import Path
 
 from .arm_core import JOINT_NAMES, ArmCore, level_velocity, roll_pitch
+from .client import KEEP_ALIVE_S
 
 PACKAGE = "uavarm_ros"
 # the ROS package's folder (this file is its src/uavarm_link/ros_node.py): msg/ and srv/
@@ -221,7 +222,7 @@ class ArmNode:
                             RosLog(rospy), self._publish,
                             attitude_timeout=float(rospy.get_param("~attitude_timeout", 0.2)),
                             keep_alive=bool(rospy.get_param("~keep_alive", True)),
-                            keep_alive_period=float(rospy.get_param("~keep_alive_period", 0.2)),
+                            keep_alive_period=float(rospy.get_param("~keep_alive_period", KEEP_ALIVE_S)),
                             attitude_topic=rospy.resolve_name(topic),
                             reenable=bool(rospy.get_param("~reenable", True)))
         self.status_pub = rospy.Publisher("~status", msg.ArmStatus, queue_size=10)
