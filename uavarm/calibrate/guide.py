@@ -178,71 +178,6 @@ def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibr
     return model_edit.write(model_path, {"imu.mounting_rpy": [round(roll, 2), round(pitch, 2), yaw]}, confirm)
 
 
-# Servo zeros: the pose every joint is at 0 deg, which a user sets by eye.
-ZERO_POSE = ("Hold the arm hanging straight down, joint 1 turned so that raising joint 2 would swing it "
-             "towards the drone's front (+x): every joint at 0 deg. Keep it there and press Enter.")
-# What a joint does when its angle grows (the DH convention of the model file), from that pose.
-DIRECTION_QUESTIONS = (
-    "Did joint 1 turn clockwise, seen from above (towards the drone's right, -y)?",
-    "Did joint 2 swing the arm forward (towards the drone's front, +x)?",
-    "Did joint 3 swing the forearm forward (towards +x)?",
-)
-JOG_UNITS = 20                     # about 6 deg: enough to see, small enough to be harmless
-SERVO_SPREAD_UNITS = 2             # a still joint's readings stay within this
-
-
-def _zero_pose_units(arm, ask, seconds: float) -> list[int]:
-    """Each servo's position (units) while the user holds the arm at the zero pose."""
-    for attempt in range(TRIES):
-        _ask_reading(arm, ask, ZERO_POSE)
-        frames = arm.collect("servo_status", seconds)
-        by_servo = [[f["position"] for f in frames if f["servo"] == j] for j in range(3)]
-        missing = [j + 1 for j, v in enumerate(by_servo) if len(v) < 3]
-        if missing:
-            raise CalibrationError(f"no readings from the servo of joint(s) {missing}: is it connected and "
-                                   "configured (heartbeat servo_timeout)?")
-        spread = [max(v) - min(v) for v in by_servo]
-        if max(spread) <= SERVO_SPREAD_UNITS:
-            return [round(float(np.mean(v))) for v in by_servo]
-        message = (f"the arm moved (joint readings spread {spread} units, still is <= {SERVO_SPREAD_UNITS}): "
-                   "hold it still and take the pose again")
-        if attempt == TRIES - 1:
-            raise CalibrationError(message)
-        print(f"  {message}")
-    raise AssertionError("unreachable")
-
-
-def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0) -> bool:
-    """Each servo's zero (its units at joint angle 0) and direction: limp, the arm held at the
-    zero pose by hand, then torque on and a small jog of each joint, whose sense the user sees;
-    then the arm parks."""
-    model = config.load(model_path)
-    hb = arm.next_heartbeat()
-    if not hb["enabled"] or hb["engaged"]:
-        raise CalibrationError("the arm must be enabled and not engaged: `uavarm link PORT enable` first")
-    with arm.kept_alive():
-        arm.torque(False)
-        arm.stream(servos=True)
-        try:
-            units = _zero_pose_units(arm, ask, seconds)
-        finally:
-            arm.stream(servos=False)
-        arm.torque(True)                  # held where the hands left it
-        directions = []
-        for j, question in enumerate(DIRECTION_QUESTIONS, 1):
-            arm.jog(j, units=JOG_UNITS)
-            directions.append(1 if _ask_reading(arm, confirm, question) else -1)
-            arm.jog(j, units=-JOG_UNITS)
-        arm.disengage()                   # (from a jogged pose: parks)
-    for j, (u, d, s) in enumerate(zip(units, directions, model.servos), 1):
-        print(f"joint {j}: zero {u} units (was {s.zero}), direction {d:+d} (was {s.direction:+d})")
-    values = {}
-    for name, u, d in zip(config.JOINTS, units, directions):
-        values[f"servo.{name}.zero"] = u
-        values[f"servo.{name}.direction"] = d
-    return model_edit.write(model_path, values, confirm)
-
-
 # Servo lag: each joint jogged this far toward the middle of its travel and back, at the park
 # speed; the readings taken for this long after each jog's command.
 LAG_JOG_RAD = 0.25                 # 14 deg: about 50 units, a ramp of a quarter second
@@ -373,6 +308,7 @@ def command(args) -> int:
         config.load(path)
         with ArmLink(args.port) as arm:
             arm.next_heartbeat()
+            from .servo_zero import servos
             run = {"imu": imu, "mounting": mounting, "servos": servos, "lag": lag, "link": link}[args.what]
             options = {} if args.seconds is None else {"seconds": args.seconds}
             if args.upstream_ms is not None:
