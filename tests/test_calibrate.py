@@ -421,7 +421,7 @@ def test_a_model_value_the_loader_refuses_is_never_written(model_copy):
 
 # ---------------------------------------------------------------- servo zeros and directions
 
-TRUTH_ZERO = [520, 497, 505]       # the units each servo reads with its joint at 0 deg
+TRUTH_ZERO = [516, 497, 505]       # the units each servo reads with its joint at 0 deg
 TRUTH_DIRECTION = [1, -1, 1]       # joint 2's servo mounted the other way round
 
 
