@@ -9,7 +9,8 @@ angle interval). Every joint vector of the box lies in a cell, so the least clea
 lower bound of the true one (provably conservative), and a cell's width keeps it within about
 a millimetre of it. Joint 1 only decides whether the arm's plane may meet a leg, which is
 decided exactly for the whole interval. Plain float64 trigonometry: its rounding (1e-13 mm) is
-far below ROUNDING_MM, the margin the verdict keeps.
+far below ROUNDING_MM, the margin the verdict keeps. (model/swept.py bounds boxes too, in
+SymPy for the generated C; the loader wants its verdict in a millisecond, on every load.)
 """
 from __future__ import annotations
 
