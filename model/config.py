@@ -616,7 +616,7 @@ def _check_servo_travel(r: _Reader, model: Model) -> None:
                 raise r.fail(f"joints.{name}",
                              f"limit {deg} deg maps to servo position {float(units):.1f} when the joint is "
                              f"servo.zero_tolerance_deg ({model.servo_zero_tolerance_deg}) off, outside "
-                             f"0..{model.servo_units_max} (check servo.{name}.zero)")
+                             f"0..{model.servo_units_max} (check servo.{name}.zero, or narrow the limit)")
 
 
 def _off_by(offsets_deg) -> str:
