@@ -19,7 +19,7 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import attitude, collision, config, filters, kinematics, messages, quaternion, servo, swept, velocity
+from ..model import attitude, collision, config, filters, kinematics, messages, pose_tolerance, quaternion, servo, swept, velocity
 from . import approx, board_ioc
 from .remember import remembered
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
@@ -451,17 +451,12 @@ def check_park(m: config.Model) -> None:
 def tuck(m: config.Model) -> tuple[float, float]:
     """Joints 2 and 3 (deg) of the pose in which the arm turns joint 1 to go round a leg: the
     park pose's if they keep the end effector and joint 3 inside the leg distance (and below
-    the body) at every joint 1 angle, else hanging straight down."""
-    for q23 in (tuple(m.park_deg[1:]), (0.0, 0.0)):
-        q = [sp.Integer(0)] + [sp.rad(sp.nsimplify(d, rational=True)).evalf(40) for d in q23]
-        geo = kinematics.fk_geometry(m, at=q)
-        inside = all(m.limits[j + 1].min_deg <= d <= m.limits[j + 1].max_deg for j, d in enumerate(q23))
-        if inside and max(abs(float(geo.ee_rho)), abs(float(geo.j3_rho))) < m.leg_distance \
-                and bool(collision.body_clear(m, geo)):
-            return q23
-    raise config.ModelError(f"{m.path}: park.q: neither the parked pose's joints 2-3 nor hanging straight "
-                            f"down keep the arm inside collision.leg_distance below the body: it could not "
-                            f"turn joint 1 past a leg")
+    the body) at every joint 1 angle with every joint off by up to the servos' zero tolerance,
+    else hanging straight down (the loader refuses a model where neither does)."""
+    q23 = pose_tolerance.tuck_deg(m, m.servo_zero_tolerance_deg)
+    if q23 is None:
+        raise config.ModelError(f"{m.path}: park.q: no pose to turn joint 1 past a leg in")
+    return q23
 
 
 def fastmath_context():

@@ -14,6 +14,8 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
+from . import pose_tolerance
+
 DEFAULT_MODEL = Path(__file__).with_name("manipulator.toml")
 JOINTS = ("theta1", "theta2", "theta3")
 # MPU-6050 choices (register value of each setting, PS-MPU-6000A rev 3.4 section 4)
@@ -58,7 +60,7 @@ _KEYS_BY_TABLE = {
     "joints.theta1": "min max", "joints.theta2": "min max", "joints.theta3": "min max",
     "collision": "body_z leg_angles leg_half_width leg_distance",
     "servo": "baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
-             "working_speed_rpm speed_margin boot_time response_lag",
+             "working_speed_rpm speed_margin boot_time response_lag zero_tolerance_deg",
     "servo.theta1": "id zero direction", "servo.theta2": "id zero direction",
     "servo.theta3": "id zero direction",
     "park": "q",
@@ -132,6 +134,7 @@ class Model:
     servo_speed_margin: float      # the share of the no-load speed at the reported supply goals may take
     servo_boot_time: float
     servo_response_lag: float      # s: how far the shaft lags its goal (the lead time covers it)
+    servo_zero_tolerance_deg: float  # deg: how far a joint may be off after a careful calibration
     park_deg: tuple[float, float, float]
     link_silence_timeout: float
     heartbeat_period: float
@@ -166,6 +169,9 @@ GYRO_CROSS_AXIS_MAX = 0.04
 # SERVO_LAG_MAX_S is too slow to stabilise anything (or is not following at all).
 SERVO_LAG_ASSUMED_S = 0.0265
 SERVO_LAG_MAX_S = 0.15
+# A servo zero off by more than this is not a calibration (at the zero pose, by eye, a joint
+# 10 deg off is plain to see).
+ZERO_TOLERANCE_MAX_DEG = 10.0
 
 
 @dataclass(frozen=True)
@@ -386,6 +392,8 @@ def parse(raw: bytes, path: Path) -> Model:
         servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
         servo_response_lag=(r.number("servo.response_lag", nonnegative=True, hi=SERVO_LAG_MAX_S)
                             if r.has("servo.response_lag") else SERVO_LAG_ASSUMED_S),
+        servo_zero_tolerance_deg=r.number("servo.zero_tolerance_deg", nonnegative=True,
+                                          hi=ZERO_TOLERANCE_MAX_DEG),
         park_deg=park,
         link_silence_timeout=r.number("link.silence_timeout", lo=2 / sample_rate, hi=3600.0),
         heartbeat_period=heartbeat,
@@ -405,6 +413,7 @@ def parse(raw: bytes, path: Path) -> Model:
         motion=_motion(r),
     )
     _check_servo_travel(r, model)
+    _check_poses_within_tolerance(r, model)
     return model
 
 
@@ -593,14 +602,52 @@ def _motion(r: _Reader) -> Motion:
 
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:
-    """Every joint limit must map inside the servo's 0..units_max range (exact rationals: a
+    """Every joint limit, widened by the zero tolerance (a zero calibrated that far off moves
+    the limit as far), must map inside the servo's 0..units_max range (exact rationals: a
     limit that maps exactly onto 0 or units_max is accepted; servo.joint_to_units is the same
     map in SymPy, which costs milliseconds per call)."""
     units_per_deg = Fraction(model.servo_units_max) / Fraction(model.servo_range_deg)
+    tol = Fraction(model.servo_zero_tolerance_deg)
     for s, name, limit in zip(model.servos, JOINTS, model.limits):
-        for deg in (limit.min_deg, limit.max_deg):
-            units = s.zero + s.direction * Fraction(deg) * units_per_deg
+        for deg, widened in ((limit.min_deg, Fraction(limit.min_deg) - tol),
+                             (limit.max_deg, Fraction(limit.max_deg) + tol)):
+            units = s.zero + s.direction * widened * units_per_deg
             if not 0 <= units <= model.servo_units_max:
                 raise r.fail(f"joints.{name}",
-                             f"limit {deg} deg maps to servo position {float(units):.1f}, outside "
-                             f"0..{model.servo_units_max} (check servo.{name}.zero)")
+                             f"limit {deg} deg maps to servo position {float(units):.1f} when the joint is "
+                             f"servo.zero_tolerance_deg ({model.servo_zero_tolerance_deg}) off, outside "
+                             f"0..{model.servo_units_max} (check servo.{name}.zero, or narrow the limit)")
+
+
+def _off_by(offsets_deg) -> str:
+    """'joint 2 +3.0 deg and joint 3 -3.0 deg' (the joints that are off)."""
+    off = [f"joint {j} {d:+.1f} deg" for j, d in enumerate(offsets_deg, 1) if round(d, 1) != 0]
+    return " and ".join(off) if off else "no joint"
+
+
+def _how_close(c: pose_tolerance.Clearance) -> str:
+    if c.mm > 0:
+        return f"{c.part} comes within {c.mm:.1f} mm of the {c.boundary}"
+    return f"{c.part} is {-c.mm:.1f} mm past the {c.boundary}"
+
+
+def _check_poses_within_tolerance(r: _Reader, model: Model) -> None:
+    """The park pose, and the pose joint 1 turns past a leg in (the tuck), must stay clear of
+    the body and the legs with every joint off by up to servo.zero_tolerance_deg: a
+    calibration that careful is what the arm is flown with."""
+    tol = model.servo_zero_tolerance_deg
+    shown = "[" + ", ".join(f"{d:g}" for d in model.park_deg) + "]"
+    c = pose_tolerance.least(model, model.park_deg, tol)
+    if not c.clear:
+        exact = pose_tolerance.least(model, model.park_deg, 0.0)
+        if not exact.clear:
+            what = "not below the body" if exact.boundary == "body plane" else "in a landing leg"
+            raise r.fail("park.q", f"the park pose q={shown} deg is {what}: {_how_close(exact)}")
+        raise r.fail("park.q", f"the park pose q={shown} deg is only safe with a perfect calibration: with "
+                               f"{_off_by(c.offsets_deg)} off (servo.zero_tolerance_deg = {tol:g}) "
+                               f"{_how_close(c)}")
+    if pose_tolerance.tuck_deg(model, tol) is None:
+        raise r.fail("park.q", "neither the park pose's joints 2-3 nor hanging straight down keep joint 3 and "
+                               "the end effector inside collision.leg_distance and below the body with every "
+                               f"joint within servo.zero_tolerance_deg ({tol:g} deg): the arm could not turn "
+                               "joint 1 past a leg")

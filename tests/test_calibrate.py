@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from conftest import wait_simulated
 from uavarm import calibrate
-from uavarm.calibrate import fit, guide
+from uavarm.calibrate import fit, guide, plausible
 from uavarm.calibrate.fit import CalibrationError, Window
 from uavarm.link import ArmLink, messages
 from uavarm.model import config
@@ -417,11 +417,117 @@ def test_a_model_value_the_loader_refuses_is_never_written(model_copy):
     assert model_copy.read_bytes() == before
 
 
+# ---------------------------------------------------------------- unusual results
+
+def test_nothing_unusual_asks_nothing(capsys):
+    plausible.settle([], allow=False, confirm=lambda q: pytest.fail("asked"))
+    assert capsys.readouterr().out == ""
+
+
+MOUNTED_ASKEW = (12.0, 0.0, 0.0)          # 2 deg beyond plausible.MOUNTING_TILT_MAX_DEG
+
+
+@pytest.mark.parametrize("allow, answer", [(False, True), (True, True), (True, False)])
+def test_a_mounting_far_from_level_is_written_only_when_allowed_and_confirmed(model_copy, capsys, allow, answer):
+    """An IMU really mounted 12 deg rolled: refused before anything is asked; with
+    allow_unusual written only if the user says yes to the second question."""
+    before = model_copy.read_bytes()
+    asked = []
+
+    def user(question):
+        asked.append(question)
+        return answer if "usually gives" in question else True
+    with sitl_link(sensor=sensor("ideal"), imu_mounting_rpy_deg=MOUNTED_ASKEW) as (s, arm):
+        run = lambda: calibrate.mounting(arm, model_copy, turning(s, [(0.0, 0.0)]), user, seconds=SECONDS,
+                                         uncalibrated_ok=True, allow_unusual=allow)   # (an ideal IMU)
+        if allow and answer:
+            assert run()
+        else:
+            with pytest.raises(CalibrationError) as err:
+                run()
+    out = capsys.readouterr().out
+    assert "imu.mounting_rpy = [12." in out and "more than 10 deg from level" in out, out
+    if not allow:
+        msg = str(err.value)
+        assert "imu.mounting_rpy" in msg and "more than 10 deg from level" in msg and "--allow-unusual" in msg, msg
+        assert asked == []
+    if allow and answer:
+        assert config.load(model_copy).imu_mounting_rpy_deg[0] == pytest.approx(MOUNTED_ASKEW[0], abs=0.05)
+        assert len(asked) == 2                 # the unusual result's question, then the diff's
+    else:
+        assert model_copy.read_bytes() == before
+
+
+def _calibrated_before(model_copy, bias, scale):
+    """The model copy as left by an earlier accelerometer calibration."""
+    text = model_copy.read_text()
+    for key, value in (("accel_bias", bias), ("accel_scale", scale)):
+        old = f"{key} = [{'0.0, 0.0, 0.0' if key == 'accel_bias' else '1.0, 1.0, 1.0'}]"
+        assert old in text
+        text = text.replace(old, f"{key} = {[round(float(v), 5) for v in value]}", 1)
+    model_copy.write_text(text)
+
+
+def test_an_accelerometer_far_from_its_last_calibration_is_refused(model_copy):
+    """The model file holds a calibration 60 mg and 3 % away from the chip's truth (another
+    chip's): the new run's result is refused, both keys named; the file is left as it was."""
+    imu_sensor = sensor()
+    truth = imu_sensor.draw
+    _calibrated_before(model_copy, truth.accel_bias + [0.06, 0.0, 0.0], truth.accel_scale * [1.0, 1.03, 1.0])
+    before = model_copy.read_bytes()
+    with sitl_link(sensor=imu_sensor) as (s, arm):
+        with pytest.raises(CalibrationError) as err:
+            calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+    msg = str(err.value)
+    assert "imu.accel_bias" in msg and "more than 50 mg" in msg and "60 mg from the last" in msg, msg
+    assert "imu.accel_scale" in msg and "more than 2%" in msg and "--allow-unusual" in msg, msg
+    assert model_copy.read_bytes() == before
+
+
+def test_an_accelerometer_near_its_last_calibration_is_written(model_copy):
+    """10 mg and 0.5 % from the last calibration (the same chip, warmer): written."""
+    imu_sensor = sensor()
+    truth = imu_sensor.draw
+    _calibrated_before(model_copy, truth.accel_bias + [0.01, 0.0, 0.0], truth.accel_scale * [1.0, 1.005, 1.0])
+    with sitl_link(sensor=imu_sensor) as (s, arm):
+        assert calibrate.imu(arm, model_copy, turning(s, SIX), lambda q: True, seconds=SECONDS)
+    assert np.abs(np.array(config.load(model_copy).imu_calibration.accel_bias) - truth.accel_bias).max() <= 0.002
+
+
+def test_the_command_line_refuses_an_unusual_result_and_allow_unusual_writes_it(model_copy, monkeypatch, capsys):
+    """`uavarm calibrate mounting PORT --yes` on an IMU mounted 12 deg rolled: an error, no
+    traceback, the file as it was; with --allow-unusual too it is written (--yes answers both
+    questions)."""
+    from uavarm import cli
+    _calibrated_before(model_copy, [0.0, 0.0, 0.0001], [1.0, 1.0, 1.0])     # (an ideal IMU, calibrated)
+    before = model_copy.read_bytes()
+    monkeypatch.setattr("builtins.input", lambda prompt="": "")              # Enter at each step
+    args = ["calibrate", "mounting", None, "--model", str(model_copy), "--yes", "--seconds", "1"]
+    s = run_sitl(sensor=sensor("ideal"), imu_mounting_rpy_deg=MOUNTED_ASKEW)
+    try:
+        args[2] = s.device
+        assert cli.main(args) == 1
+        err = capsys.readouterr().err
+        assert "error: unusual result, not written: imu.mounting_rpy" in err and "--allow-unusual" in err, err
+        assert "left as it was" in err and "Traceback" not in err
+        assert model_copy.read_bytes() == before
+        assert cli.main(args + ["--allow-unusual"]) == 0
+    finally:
+        s.stop()
+    assert config.load(model_copy).imu_mounting_rpy_deg[0] == pytest.approx(MOUNTED_ASKEW[0], abs=0.1)
+
+
+def test_allow_unusual_is_refused_where_nothing_is_checked(model_copy, capsys):
+    from uavarm import cli
+    assert cli.main(["calibrate", "link", "/dev/no-such-port", "--model", str(model_copy), "--allow-unusual"]) == 2
+    assert "--allow-unusual is for" in capsys.readouterr().err
+
+
 # ---------------------------------------------------------------- the firmware applies them
 
 # ---------------------------------------------------------------- servo zeros and directions
 
-TRUTH_ZERO = [520, 497, 505]       # the units each servo reads with its joint at 0 deg
+TRUTH_ZERO = [516, 497, 505]       # the units each servo reads with its joint at 0 deg
 TRUTH_DIRECTION = [1, -1, 1]       # joint 2's servo mounted the other way round
 
 

@@ -97,6 +97,23 @@ def test_lag_calibration_measures_the_servos_and_moves_the_lead_time(model_copy,
     assert "# Seconds the shaft lags its goal" in model_copy.read_text()      # comments kept
 
 
+def test_a_lag_beyond_an_ax12a_and_a_lead_time_moved_far_are_refused(model_copy):
+    """Shafts lagging 90 ms (more than an AX-12A's 80 ms: blocked, loaded or under-powered):
+    refused with both keys named, the lead time having moved 63.5 ms; the file as it was."""
+    s, arm = enabled_sitl(servo_lag=0.09)
+    before = model_copy.read_bytes()
+    try:
+        with pytest.raises(CalibrationError) as err:
+            guide.lag(arm, model_copy, lambda text: None, lambda q: True)
+    finally:
+        arm.close()
+        s.stop()
+    msg = str(err.value)
+    assert "servo.response_lag" in msg and "outside an AX-12A's 5-80 ms" in msg, msg
+    assert "estimator.lead_time" in msg and "more than 30 ms" in msg and "--allow-unusual" in msg, msg
+    assert model_copy.read_bytes() == before
+
+
 def test_lag_calibration_with_a_servo_unplugged_names_it_and_writes_nothing(model_copy):
     s, arm = enabled_sitl(servo_lag=0.02)
     before = model_copy.read_bytes()

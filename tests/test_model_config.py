@@ -9,7 +9,7 @@ import pytest
 
 import oracles
 from uavarm.codegen import generate
-from uavarm.model import config
+from uavarm.model import config, pose_tolerance
 
 BASE = config.DEFAULT_MODEL.read_text()
 
@@ -270,7 +270,7 @@ def test_new_keys_load(model):
 
 # Park poses and what the plain geometry of oracles.py says about them (verified below).
 BAD_PARKS = [
-    ([0.0, 130.0, 0.0], 2, "outside the joint limits"),     # theta2 max is 120
+    ([0.0, 0.0, 120.0], 2, "outside the joint limits"),     # theta3 max is 114.76
     ([0.0, 90.0, 90.0], 3, "not below the body"),           # forearm points up: ee at z = +33.5
     ([45.0, 90.0, 0.0], 4, "in a landing leg"),             # ee 138.5 mm out, in leg 45's plane
 ]
@@ -281,8 +281,7 @@ def test_codegen_rejects_bad_park_pose(tmp_path, model, q, status, words):
     assert oracles.check_pose(model, np.radians(q))[0][0] == status     # the pose really is bad
     path = tmp_path / "arm.toml"
     path.write_text(BASE.replace("q = [0.0, 60.0, -110.0]", f"q = {q}", 1))
-    config.load(path)                                                   # the file itself is valid
-    with pytest.raises(config.ModelError) as err:
+    with pytest.raises(config.ModelError) as err:    # the loader (body, legs) or the generator (limits)
         generate.render(path)
     msg = str(err.value)
     assert str(path) in msg and "park.q" in msg and words in msg, msg
@@ -478,3 +477,73 @@ def test_speed_units_examples():
     the 1023 ceiling at 113.5 rpm, and the floor of 1 (0 would mean "no speed limit")."""
     from uavarm.model import servo
     assert [servo.speed_units(r) for r in (10.0, 59.0, 113.5, 0.111, 0.05)] == [90, 532, 1023, 1, 1]
+
+
+# --- poses within the servos' zero tolerance --------------------------------------------------
+def _box_clearance(m, q_deg, tol_deg, n=41):
+    """The least clearance (oracles.clearance_mm, plain geometry) over an n x n x n grid of the
+    joint vectors within tol_deg of q_deg (corners and edges included), and where."""
+    axes = [np.linspace(d - tol_deg, d + tol_deg, n) for d in q_deg]
+    q = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    c = oracles.clearance_mm(m, np.radians(q))
+    return float(c.min()), q[int(np.argmin(c))]
+
+
+def test_shipped_park_is_clear_within_the_zero_tolerance(model):
+    """The shipped park pose keeps 69.5 mm from the body plane with every joint 3 deg off
+    (joint 3 at 40 + 65 cos 63 deg below the base), and the loader's bound agrees."""
+    assert model.servo_zero_tolerance_deg == 3.0
+    sampled, _ = _box_clearance(model, model.park_deg, 3.0)
+    assert sampled == pytest.approx(40.0 + 65.0 * math.cos(math.radians(63.0)), abs=1e-6)
+    bound = pose_tolerance.least(model, model.park_deg, 3.0)
+    assert sampled - 1.0 <= bound.mm <= sampled + 1e-9
+    assert (bound.part, bound.boundary) == ("joint 3", "body plane")
+
+
+def test_park_safe_only_with_a_perfect_calibration_is_refused(tmp_path, model):
+    """[0, 90, 30]: the end effector 3.25 mm below the body plane; 3 deg more on joints 2 and 3
+    lift it above. Plain geometry says so; the loader refuses it, naming pose, joints, clearance."""
+    q = (0.0, 90.0, 30.0)
+    assert oracles.clearance_mm(model, np.radians([q]))[0] == pytest.approx(40 - 73.5 * 0.5)
+    sampled, worst = _box_clearance(model, q, 3.0)
+    assert sampled < 0 and list(worst[1:] - q[1:]) == pytest.approx([3.0, 3.0])
+    msg = broken(tmp_path, "q = [0.0, 60.0, -110.0]", f"q = {list(q)}")
+    assert "park.q" in msg and "q=[0, 90, 30]" in msg and "only safe with a perfect calibration" in msg, msg
+    assert "joint 2 +3.0 deg and joint 3 +3.0 deg off" in msg and "the end effector" in msg, msg
+    past = float(re.search(r"is ([\d.]+) mm past the body plane", msg).group(1))
+    assert past == pytest.approx(-sampled, abs=1.0)           # the bound, within its cells' width
+    exact = BASE.replace("q = [0.0, 60.0, -110.0]", f"q = {list(q)}").replace(
+        "zero_tolerance_deg = 3.0", "zero_tolerance_deg = 0.0")
+    load_text(tmp_path, exact)                                 # with a perfect calibration it is clear
+
+
+def test_tolerance_bound_is_conservative_against_plain_geometry(model):
+    """On random poses and tolerances the loader's bound never exceeds the clearance sampled
+    on the box (it would let a pose pass that is not clear)."""
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        q = rng.uniform(-150.0, 150.0, size=3)
+        tol = float(rng.uniform(0.5, 10.0))
+        sampled, _ = _box_clearance(model, q, tol, n=15)
+        assert pose_tolerance.least(model, q, tol).mm <= sampled + 1e-9, (q, tol)
+
+
+def test_limits_widened_by_the_tolerance_must_fit_the_servo_travel(tmp_path):
+    """theta1 at +-149 deg maps to 512 -+ 508.1 units; 3 deg further, 152 deg, to 512 - 518.4 < 0."""
+    assert 512 - 149 * 1023 / 300 > 0 > 512 - 152 * 1023 / 300
+    wide = "[joints.theta1]\nmin = -149.0\nmax = 149.0"
+    msg = broken(tmp_path, "[joints.theta1]\nmin = -145.0\nmax = 145.0", wide)
+    assert "joints.theta1" in msg and "zero_tolerance_deg" in msg and "-6.3" in msg, msg
+    load_text(tmp_path, BASE.replace("[joints.theta1]\nmin = -145.0\nmax = 145.0", wide).replace(
+        "zero_tolerance_deg = 3.0", "zero_tolerance_deg = 0.0"))
+
+
+def test_a_tuck_must_stay_inside_the_leg_distance_within_the_tolerance(tmp_path):
+    """With the leg distance 8 mm only hanging straight down can turn past a leg: exactly
+    (0 mm off the axis), not with the joints 3 deg off (the end effector 65 sin 3 + 73.5 sin 6
+    = 11.1 mm out)."""
+    short = BASE.replace("leg_distance = 100.0", "leg_distance = 8.0")
+    m, _ = load_text(tmp_path, short.replace("zero_tolerance_deg = 3.0", "zero_tolerance_deg = 0.0"))
+    assert generate.tuck(m) == (0.0, 0.0)
+    msg = broken(tmp_path, "leg_distance = 100.0", "leg_distance = 8.0")
+    assert "park.q" in msg and "past a leg" in msg, msg

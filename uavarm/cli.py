@@ -219,6 +219,11 @@ def parser() -> argparse.ArgumentParser:
                      help="link: how old the attitude's stamps are when they reach this computer, added to "
                           "what is measured (e.g. the mean of `rostopic delay` on the attitude topic; default 0)")
     cal.add_argument("--yes", action="store_true", help="write the result without asking")
+    cal.add_argument("--allow-unusual", action="store_true",
+                     help="imu, mounting, lag: write a result beyond what a calibration usually gives (a mounting "
+                          "more than 10 deg from level, an accelerometer far from its last calibration, a servo lag "
+                          "outside 5-80 ms or a lead time moved more than 30 ms) after a second confirmation "
+                          "(none with --yes)")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
     st.add_argument("scenario", nargs="?", default="level",
                     help="level (default), tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (bench tilting)")

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import fit, model_edit
+from . import fit, model_edit, plausible
 from .fit import CalibrationError, Window
 from ..model import config
 
@@ -112,7 +112,7 @@ class _Record:
         return out
 
 
-def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
+def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0, allow_unusual: bool = False) -> bool:
     """Accelerometer bias and scale from six still positions, the gyro's zero-rate offset,
     and its scale and cross-axis sensitivity from the turns between them."""
     model = config.load(model_path)
@@ -138,6 +138,9 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
         "imu.accel_scale": [round(float(s), 5) for s in accel.scale],
         "imu.gyro_bias_dps": [round(float(g), 3) for g in gyro],
     }
+    cal = model.imu_calibration
+    unusual = plausible.accelerometer(cal.accel_bias, cal.accel_scale, values["imu.accel_bias"],
+                                      values["imu.accel_scale"])
     ups = [(w.accel_g - accel.bias) / accel.scale for w in windows]
     try:
         scale = fit.fit_gyro_scale(record.turns([u / np.linalg.norm(u) for u in ups], model.gyro_range_dps), gyro)
@@ -150,10 +153,12 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0) -> bool:
         values["imu.gyro_scale"] = [round(float(s), 5) for s in scale.scale]
         values["imu.gyro_cross_axis"] = [[0.0 if i == j else round(float(c), 4) for j, c in enumerate(row)]
                                          for i, row in enumerate(scale.cross_axis)]
+    plausible.settle(unusual, allow_unusual, confirm)
     return model_edit.write(model_path, values, confirm)
 
 
-def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibrated_ok: bool = False) -> bool:
+def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibrated_ok: bool = False,
+             allow_unusual: bool = False) -> bool:
     """The IMU's roll and pitch on the base, with the drone standing level (the accelerometer
     calibrated first: its bias would read as a tilt; uncalibrated_ok for an ideal IMU)."""
     model = config.load(model_path)
@@ -175,7 +180,9 @@ def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibr
     yaw = model.imu_mounting_rpy_deg[2]
     print(f"IMU on the base: roll {roll:+.2f} deg, pitch {pitch:+.2f} deg (yaw {yaw:+.2f} deg kept: "
           "gravity does not show it)")
-    return model_edit.write(model_path, {"imu.mounting_rpy": [round(roll, 2), round(pitch, 2), yaw]}, confirm)
+    rpy = [round(roll, 2), round(pitch, 2), yaw]
+    plausible.settle(plausible.mounting(model.imu_mounting_rpy_deg, *rpy), allow_unusual, confirm)
+    return model_edit.write(model_path, {"imu.mounting_rpy": rpy}, confirm)
 
 
 # Servo lag: each joint jogged this far toward the middle of its travel and back, at the park
@@ -195,7 +202,7 @@ def _jog_record(arm, joint: int, angle: float, seconds: float):
     return t, np.array([f["goal"] for f in mine], float), np.array([f["position"] for f in mine], float)
 
 
-def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S) -> bool:
+def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S, allow_unusual: bool = False) -> bool:
     """How far each servo's shaft lags its goal: a jog of each joint and back, fitted as a
     first-order lag with dead time; servo.response_lag set to the joints' mean, and the lead
     time moved by the same difference (it also covers the loop's own delay)."""
@@ -230,8 +237,11 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S) -> b
     print(f"servo lag {measured * 1000:.1f} ms (the joints' mean less the {tick * 1000:.0f} ms tick the jog adds; "
           f"was {model.servo_response_lag * 1000:.1f}): lead time "
           f"{lead * 1000:.1f} ms (was {model.estimator.lead_time * 1000:.1f})")
-    return model_edit.write(model_path, {"servo.response_lag": round(measured, 4),
-                                         "estimator.lead_time": round(lead, 4)}, confirm)
+    values = {"servo.response_lag": round(measured, 4), "estimator.lead_time": round(lead, 4)}
+    plausible.settle(plausible.servo_lag(model.servo_response_lag, values["servo.response_lag"],
+                                         model.estimator.lead_time, values["estimator.lead_time"]),
+                     allow_unusual, confirm)
+    return model_edit.write(model_path, values, confirm)
 
 
 LINK_SECONDS = 5.0
@@ -288,6 +298,10 @@ def link(arm, model_path: Path, ask, confirm, seconds: float = LINK_SECONDS, ups
     return model_edit.write(model_path, {"estimator.link_delay_min": round(delay, 4)}, confirm)
 
 
+# The calibrations whose results are checked against plausible's windows (--allow-unusual).
+UNUSUAL_CHECKED = ("imu", "mounting", "lag")
+
+
 def terminal_ask(text: str) -> None:
     input(text + " ")
 
@@ -304,6 +318,10 @@ def command(args) -> int:
     if args.upstream_ms is not None and args.what != "link":
         print(f"error: --upstream-ms is for `uavarm calibrate link` only, not {args.what}", file=sys.stderr)
         return 2
+    if args.allow_unusual and args.what not in UNUSUAL_CHECKED:
+        print(f"error: --allow-unusual is for `uavarm calibrate {'|'.join(UNUSUAL_CHECKED)}` only, not {args.what}",
+              file=sys.stderr)
+        return 2
     try:
         config.load(path)
         with ArmLink(args.port) as arm:
@@ -313,6 +331,8 @@ def command(args) -> int:
             options = {} if args.seconds is None else {"seconds": args.seconds}
             if args.upstream_ms is not None:
                 options["upstream_ms"] = args.upstream_ms
+            if args.what in UNUSUAL_CHECKED:
+                options["allow_unusual"] = args.allow_unusual
             run(arm, path, terminal_ask, confirm, **options)
     except (LinkError, CalibrationError, config.ModelError, OSError) as exc:   # OSError: the port failed
         print(f"error: {exc}", file=sys.stderr)
