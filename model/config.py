@@ -602,21 +602,17 @@ def _motion(r: _Reader) -> Motion:
 
 
 def _check_servo_travel(r: _Reader, model: Model) -> None:
-    """Every joint limit, widened by the zero tolerance (a zero calibrated that far off moves
-    the limit as far), must map inside the servo's 0..units_max range (exact rationals: a
+    """Every joint limit must map inside the servo's 0..units_max range (exact rationals: a
     limit that maps exactly onto 0 or units_max is accepted; servo.joint_to_units is the same
     map in SymPy, which costs milliseconds per call)."""
     units_per_deg = Fraction(model.servo_units_max) / Fraction(model.servo_range_deg)
-    tol = Fraction(model.servo_zero_tolerance_deg)
     for s, name, limit in zip(model.servos, JOINTS, model.limits):
-        for deg, widened in ((limit.min_deg, Fraction(limit.min_deg) - tol),
-                             (limit.max_deg, Fraction(limit.max_deg) + tol)):
-            units = s.zero + s.direction * widened * units_per_deg
+        for deg in (limit.min_deg, limit.max_deg):
+            units = s.zero + s.direction * Fraction(deg) * units_per_deg
             if not 0 <= units <= model.servo_units_max:
                 raise r.fail(f"joints.{name}",
-                             f"limit {deg} deg maps to servo position {float(units):.1f} when the joint is "
-                             f"servo.zero_tolerance_deg ({model.servo_zero_tolerance_deg}) off, outside "
-                             f"0..{model.servo_units_max} (check servo.{name}.zero, or narrow the limit)")
+                             f"limit {deg} deg maps to servo position {float(units):.1f}, outside "
+                             f"0..{model.servo_units_max} (check servo.{name}.zero)")
 
 
 def _off_by(offsets_deg) -> str:

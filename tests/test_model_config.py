@@ -528,16 +528,6 @@ def test_tolerance_bound_is_conservative_against_plain_geometry(model):
         assert pose_tolerance.least(model, q, tol).mm <= sampled + 1e-9, (q, tol)
 
 
-def test_limits_widened_by_the_tolerance_must_fit_the_servo_travel(tmp_path):
-    """theta1 at +-149 deg maps to 512 -+ 508.1 units; 3 deg further, 152 deg, to 512 - 518.4 < 0."""
-    assert 512 - 149 * 1023 / 300 > 0 > 512 - 152 * 1023 / 300
-    wide = "[joints.theta1]\nmin = -149.0\nmax = 149.0"
-    msg = broken(tmp_path, "[joints.theta1]\nmin = -145.0\nmax = 145.0", wide)
-    assert "joints.theta1" in msg and "zero_tolerance_deg" in msg and "-6.3" in msg, msg
-    load_text(tmp_path, BASE.replace("[joints.theta1]\nmin = -145.0\nmax = 145.0", wide).replace(
-        "zero_tolerance_deg = 3.0", "zero_tolerance_deg = 0.0"))
-
-
 def test_a_tuck_must_stay_inside_the_leg_distance_within_the_tolerance(tmp_path):
     """With the leg distance 8 mm only hanging straight down can turn past a leg: exactly
     (0 mm off the axis), not with the joints 3 deg off (the end effector 65 sin 3 + 73.5 sin 6
