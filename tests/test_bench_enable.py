@@ -19,6 +19,7 @@ import pytest
 
 from simboard_tools import FAULT, MODEL, PARK_UNITS, BusLog, make_board, run_until, shaft_units, sync_goal_speed
 from uavarm.link import ArmLink, CommandRefused, messages, shell
+from uavarm.link.client import RestartWatch
 from uavarm.sim.sitl import Sitl
 
 TRUTH = [300, 700, 512]          # where the shafts rest (units)
@@ -183,6 +184,41 @@ def test_disengage_from_a_jog_on_the_bench_goes_limp_where_the_arm_stands():
     assert shaft_span(board, start_us).max() <= 1.0
 
 
+def test_a_servo_reset_on_the_bench_leaves_the_arm_limp():
+    """A held bench arm whose joint-3 servo browns out (RAM reset, torque off): the whole arm
+    goes limp, flagged servo_reset, no goal toward the park pose."""
+    board, log = bench()
+    held = hold_then(board, log)
+    servo = board.bus.servos[2]
+    servo.power_off()
+    servo.power_on()                                  # RAM back to its power-on values
+    t0, start_us = board.bus.time, board.now_us
+    keep_alive(board, 1.0)
+    hb = after_heartbeats(board)
+    assert hb["faults"] & FAULT["servo_reset"] and state(board) == "limp" and hb["enabled"] == BENCH
+    limp_from(board, log, t0)
+    assert shaft_span(board, start_us).max() <= 1.0 and shaft_units(board) == pytest.approx(held, abs=1.0)
+
+
+def test_enable_1_while_the_bench_still_starts_configures_the_servos_again_and_parks():
+    board = make_board(at=TRUTH)
+    board.send("enable", on=BENCH)
+    board.run(0.05)                                   # the servos still booting
+    board.send("enable", on=1)
+    keep_alive(board, 6.0)
+    assert state(board) == "parked" and board.heartbeats[-1]["enabled"] == 1 and torque_enabled(board)
+    assert shaft_units(board) == pytest.approx(PARK_UNITS, abs=2.0)
+
+
+def test_the_bench_is_refused_while_the_drone_flies():
+    board = make_board(at=TRUTH)
+    board.send("drone_attitude", seq=0, stamp_us=0, roll=0.0, pitch=0.0)
+    board.run(0.1)
+    board.send("enable", on=BENCH)
+    hb = after_heartbeats(board)
+    assert refusal(board) == "flying" and hb["enabled"] == 0 and not board.servo_power
+
+
 def test_enable_1_ends_the_bench_and_parks_and_enable_0_cuts_the_supply():
     board, log = bench()
     keep_alive(board, 0.5)
@@ -226,6 +262,18 @@ def test_the_shell_reads_enable_limp():
     assert shell.parse("enable") == ("enable", [])
     with pytest.raises(shell.ShellError):
         shell.parse("enable stiff")
+
+
+def test_a_bench_board_that_restarted_is_enabled_limp_again():
+    watchdog = [name for name, _ in messages.RESET_CAUSES].index("watchdog")
+    hb = lambda uptime, enabled: {"uptime_ms": uptime, "enabled": enabled, "engaged": 0, "reset_cause": watchdog,
+                                  "last_fault": 0}
+    for enabled, again in ((BENCH, BENCH), (1, 1)):
+        watch = RestartWatch()
+        assert watch.check(hb(5000, enabled)) is None
+        assert "restarted while enabled" in watch.check(hb(100, 0))
+        assert watch.enabled_as == again
+        assert ("limp again" in watch.reenabled()) == (again == BENCH)
 
 
 @pytest.mark.realtime

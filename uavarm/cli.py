@@ -50,13 +50,12 @@ def demo(args) -> int:
 
 
 def _heartbeat_line(hb) -> str:
-    from .link.client import BENCH
+    from .link.client import bench_note
     from .link.messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, state_name
     q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
     refused = f" refused {REFUSALS[hb['refusal']][0]}" if 0 < hb["refusal"] < len(REFUSALS) else ""
     halted = f" after {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
-    bench = " (bench: enabled limp)" if hb["enabled"] == BENCH else ""
-    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{bench}{refused} "
+    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{bench_note(hb)}{refused} "
             f"(reset: {reset_cause_name(hb['reset_cause'])}{halted}): "
             f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
             f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "

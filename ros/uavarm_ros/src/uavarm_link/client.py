@@ -58,6 +58,11 @@ BENCH = 2
 UNMEANT_RESETS = ("watchdog", "window_watchdog")
 
 
+def bench_note(hb: dict) -> str:
+    """What a status line adds for a bench-enabled arm (heartbeat enabled 2)."""
+    return " (bench: enabled limp)" if hb["enabled"] == BENCH else ""
+
+
 class LinkError(Exception):
     """The link to the arm failed."""
 

@@ -18,7 +18,7 @@ import sys
 import threading
 import time
 
-from .client import BENCH, KEEP_ALIVE_S, LinkError, RestartWatch
+from .client import BENCH, KEEP_ALIVE_S, LinkError, RestartWatch, bench_note
 from .messages import fault_names, state_name
 from .shared import SharedLink
 
@@ -84,8 +84,7 @@ def parse(line: str) -> tuple[str, list[float]] | None:
 
 def status_line(hb: dict) -> str:
     faults = fault_names(hb["faults"])
-    bench = " (bench: enabled limp)" if hb["enabled"] == BENCH else ""
-    return (f"[{hb['uptime_ms'] / 1000:7.1f} s] {state_name(hb['state'])}{bench}, set "
+    return (f"[{hb['uptime_ms'] / 1000:7.1f} s] {state_name(hb['state'])}{bench_note(hb)}, set "
             f"({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm, "
             f"faults: {', '.join(faults) if faults else 'none'}")
 
@@ -166,8 +165,8 @@ class Session:
         if name == "jog":
             hb = link.jog(int(numbers[0]), angle=math.radians(numbers[1]))
             return status_line(hb)
-        action = {"enable": link.enable, "enable limp": lambda: link.enable(limp=True), "disable": link.disable, "engage": link.engage,
-                  "disengage": link.disengage, "status": link.next_heartbeat,
+        action = {"enable": link.enable, "enable limp": lambda: link.enable(limp=True), "disable": link.disable,
+                  "engage": link.engage, "disengage": link.disengage, "status": link.next_heartbeat,
                   "limp": lambda: link.torque(False), "stiff": lambda: link.torque(True)}[name]
         return status_line(action())
 
