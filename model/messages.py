@@ -41,7 +41,14 @@ class Message:
 
 MESSAGES = (
     Message("enable", 0x10, "to_arm", (("on", "u8"),),
-            "1: servo power on, park and hold; 0: servo power off at once, engage cleared"),
+            "1: servo power on, park and hold; 0: servo power off at once, engage cleared; "
+            "2 (bench, for calibrating the servos' zeros and directions; refused while engaged or the drone "
+            "flying): servo power on and the servos configured as by 1, but the torque left off and no goal "
+            "sent: the arm hangs limp where it is, its positions still read (the service commands and "
+            "streams work). Until enable 1 or 0 the firmware never moves it by the model's calibration on "
+            "its own: what would park it (the link silent, a drone_attitude or drone_velocity, engage 0 "
+            "from a jogged or held pose, a servo found reset) turns the torque off instead, and engage is "
+            "refused (refusal bench). enable 1 then ends the bench: the torque on and the arm parks"),
     Message("engage", 0x11, "to_arm", (("on", "u8"),),
             "1 (only while enabled): go to the set position and stabilise; 0: park"),
     Message("set_position", 0x12, "to_arm", (("x", "f32"), ("y", "f32"), ("z", "f32")),
@@ -50,8 +57,8 @@ MESSAGES = (
             (("seq", "u16"), ("stamp_us", "u32"), ("roll", "f32"), ("pitch", "f32")),
             "the drone's attitude from its flight controller (rad, Z-Y-X Euler) at >= 50 Hz; "
             "seq counts up by one per message, stamp_us is the drone's clock. It keeps the link alive "
-            "and marks the drone as flying: a limp or jogged arm parks with the torque on, the streams "
-            "stop, and the service commands are refused for link.silence_timeout after it; fused when "
+            "and marks the drone as flying: a limp or jogged arm parks with the torque on (bench-enabled: goes "
+            "limp instead), the streams stop, and the service commands are refused for link.silence_timeout after it; fused when "
             "estimator.drone_attitude is set. "
             "Signs as REP 103 (x forward, y left, z up): roll positive right side down, pitch positive "
             "nose down (a flight controller's FRD pitch with its sign flipped)"),
@@ -69,7 +76,8 @@ MESSAGES = (
     Message("ping", 0x17, "to_arm", (("seq", "u16"), ("stamp_us", "u32")),
             "answered at once, in any state, with pong (seq and stamp_us given back): the round trip "
             "and the board's time of arrival measure the link's delay (`uavarm calibrate link`). It keeps "
-            "nothing alive: alone, an engaged, limp or jogged arm parks after link.silence_timeout"),
+            "nothing alive: alone, an engaged, limp or jogged arm parks after link.silence_timeout (bench-enabled: "
+            "goes limp)"),
     Message("drone_velocity", 0x18, "to_arm",
             (("seq", "u16"), ("stamp_us", "u32"), ("vx", "f32"), ("vy", "f32"), ("vz", "f32")),
             "the velocity of the drone's centre of rotation from its odometry (m/s, gravity-aligned "
@@ -91,7 +99,8 @@ MESSAGES = (
         ("servo2_voltage", "u8"), ("servo2_temperature", "u8"), ("servo2_load", "u16"),
         ("servo3_voltage", "u8"), ("servo3_temperature", "u8"), ("servo3_load", "u16"),
         ("lagging_joints", "u8"),
-    ), "every 500 ms: sequence number and uptime, state, set position, joint angles (rad), fault flags, "
+    ), "every 500 ms: sequence number and uptime, enabled (0 off, 1 on, 2 on limp for calibration: "
+       "enable 2, the bench), state, set position, joint angles (rad), fault flags, "
        "counters, the bus and reset state (with the exception that halted the firmware before it), firmware and model identity, each servo's supply (0.1 V), "
        "temperature (deg C) and load (AX-12A units, bit 10 = direction), and the joints whose shaft fell "
        "behind its goal since the last heartbeat (bit 0 = joint 1; faults.servo_lagging)"),
@@ -122,11 +131,13 @@ REFUSALS = (
     ("servo_tracking", "engage while a servo does not follow its goal"),
     ("no_route", "engage or set_position with no clear route there"),
     ("not_finite", "set_position with a NaN or infinite coordinate"),
-    ("engaged", "a service command (jog, torque, stream) while engaged: disengage first"),
+    ("engaged", "a service command (jog, torque, stream, enable 2) while engaged: disengage first"),
     ("bad_jog", "jog of a joint other than 1-3, by a non-finite value, or to a pose outside the limits, "
                 "in the body or a leg, or with no clear path"),
-    ("flying", "a service command (torque, jog, a stream on) while the drone's attitude or velocity came "
-               "within link.silence_timeout: the drone may be flying"),
+    ("flying", "a service command (torque, jog, a stream on, enable 2) while the drone's attitude or "
+               "velocity came within link.silence_timeout: the drone may be flying"),
+    ("bench", "engage while the arm was enabled limp for calibration (enable 2): enable it (enable 1, "
+              "which parks with the model's calibration) before engaging"),
 )
 
 # heartbeat.reset_cause: why the chip last reset (RCC_CSR's flags, read once at start-up)
@@ -163,7 +174,7 @@ FAULTS = (
     ("imu", "the IMU did not answer, is not an MPU-6050, or gave no usable sample (none new, or full "
             "scale) for several ticks: an engaged arm parks, engage is refused until it is back"),
     ("link_lost", "the link fell silent while engaged, limp or at a jogged pose, so the arm parked with the "
-                  "torque on (latched until engage)"),
+                  "torque on (bench-enabled, enable 2: went or stayed limp instead; latched until engage)"),
     ("out_of_reach", "at the current tilt the set position is out of the branch's reach: the arm holds "
                      "the nearest point it reaches (or its last goal)"),
     ("command_refused", "the last engage or set_position was refused; heartbeat.refusal says why"),

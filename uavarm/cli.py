@@ -50,11 +50,12 @@ def demo(args) -> int:
 
 
 def _heartbeat_line(hb) -> str:
+    from .link.client import bench_note
     from .link.messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, state_name
     q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
     refused = f" refused {REFUSALS[hb['refusal']][0]}" if 0 < hb["refusal"] < len(REFUSALS) else ""
     halted = f" after {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
-    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{refused} "
+    return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{bench_note(hb)}{refused} "
             f"(reset: {reset_cause_name(hb['reset_cause'])}{halted}): "
             f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
             f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "
@@ -76,7 +77,7 @@ def link(args) -> int:
                     if args.keep_alive:
                         arm.keep_alive()
             action = {
-                "enable": arm.enable, "disable": arm.disable, "engage": arm.engage,
+                "enable": lambda: arm.enable(limp=args.limp), "disable": arm.disable, "engage": arm.engage,
                 "disengage": arm.disengage, "status": arm.next_heartbeat,
                 "goto": lambda: arm.set_position(*args.xyz),
                 "limp": lambda: arm.torque(False), "stiff": lambda: arm.torque(True),
@@ -195,6 +196,11 @@ def parser() -> argparse.ArgumentParser:
     lk.add_argument("--script", default=None, metavar="FILE",
                     help="shell: commands or targets from FILE ('-': standard input; default: a prompt when "
                          "standard input is a terminal, else standard input)")
+    lk.add_argument("--limp", action="store_true",
+                    help="enable: the bench, to calibrate the servos (enable 2): power on with the torque off, "
+                         "the arm limp where it hangs and never moved by the board on its own (the link silent, "
+                         "the drone's messages, disengage: it goes limp); engage is refused until a plain "
+                         "enable, which parks it")
     lk.add_argument("--no-reenable", dest="reenable", action="store_false",
                     help="shell: a board that restarts while enabled after a watchdog reset or a fault (it "
                          "comes up limp) is reported but not enabled again (default: enabled again, so it "

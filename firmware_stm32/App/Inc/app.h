@@ -27,6 +27,14 @@
  * any tick since the previous heartbeat, so a shorter fault is still seen; the other bits
  * as they stand.
  *
+ * Bench (enable 2, refused while engaged or flying): the servos powered and configured with the
+ * torque off, no goal sent, the arm limp where it hangs and read. The model's zeros and
+ * directions are not trusted yet (they are what the calibration finds), so until enable 0 or
+ * 1 the firmware never moves the arm on its own: what would park it (the link silent, the
+ * drone heard, engage 0 from a jogged or held pose, a servo found reset) turns the torque off
+ * instead, and engage is refused (refusal "bench"). The service commands work as below.
+ * enable 1 ends the bench: the torque on and the arm parks. The heartbeat's enabled is 2.
+ *
  * Service (for bring-up and calibration; refused while engaged or flying, taken while enabled).
  * Flying: a drone_attitude or drone_velocity came within the link's silence timeout; each
  * ends a service state (torque on, park) and stops the streams. set_position is no sign of
@@ -61,7 +69,7 @@ extern "C" {
 #endif
 
 /* cffi:begin */
-#define APP_FIRMWARE_VERSION 0x000500u   /* 0.5.0: major, minor, patch bytes (the heartbeat's "firmware") */
+#define APP_FIRMWARE_VERSION 0x000600u   /* 0.6.0: major, minor, patch bytes (the heartbeat's "firmware") */
 #define APP_IMU_RETRY_MS 1000
 #define APP_CLOCK_STALL_TICKS 3        /* ticks in a row with the microsecond clock standing still */
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
@@ -81,6 +89,7 @@ typedef struct {
     motion_t motion;
     /* control state */
     bool enabled;
+    bool bench;                    /* enabled limp for calibration (enable 2): the firmware never moves it */
     bool engaged;
     bool unreachable;              /* the last set_position was refused as unreachable */
     bool out_of_reach;             /* this tick's tilt put the set position out of reach */

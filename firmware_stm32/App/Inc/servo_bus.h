@@ -9,7 +9,7 @@
  * limits in servo units, so the servo itself also refuses a goal outside them), the safety
  * registers (temperature and voltage limits, Max Torque 1023, Alarm Shutdown: servo_bus.c),
  * Torque Limit 1022 (undoes an overload shutdown; one below Max Torque, which a servo that
- * lost its RAM comes back with) and Torque Enable 1, and reads it all back, with
+ * lost its RAM comes back with) and Torque Enable 1 (0: sbus_power_limp), and reads it all back, with
  * the status registers (the servo's position before anything moves it). The EEPROM is
  * written only where it differs. Writes are sent whether or not the servo still answers
  * them (a servo fresh from the factory has level 2), so the driver waits for an optional
@@ -25,7 +25,8 @@
  * before the next READ, and it is counted (resets).
  *
  * Service: sbus_limp() turns the torque off (a broadcast WRITE) and back on (each servo set
- * up again, holding where it stands); sbus_read() reads a limp arm.
+ * up again, holding where it stands); sbus_read() reads a limp arm; sbus_power_limp() powers
+ * and configures the servos with Torque Enable 0 (limp from the start).
  *
  * Received bytes are matched to the request by servo id and parameter count, so the
  * master's own echo (a single-wire UART hears itself) and stray packets are ignored. The
@@ -142,6 +143,9 @@ typedef struct {
 void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], uint32_t baud);
 /* Switch the servo supply; on restarts the boot and configuration, off stops all traffic. */
 void sbus_power(sbus_t *bus, bool on);
+/* Switch the servo supply on as sbus_power does, the servos configured with the torque off and
+ * the bus limp (as after sbus_limp(true)): nothing moves them until sbus_limp(false). */
+void sbus_power_limp(sbus_t *bus);
 /* Queue the next SYNC_WRITE (goal position and moving speed per servo, in units); ignored
  * unless RUNNING. A command not yet sent is replaced. */
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS]);

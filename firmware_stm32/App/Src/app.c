@@ -65,10 +65,14 @@ static void watch_afresh(app_t *app)
     app->behind = 0;
 }
 
-static void set_enabled(app_t *app, bool on)
+/* Servo power on or off; bench (on only): configured with the torque off, never moved by
+ * the firmware on its own (app.h). Into or out of the bench while on: configured again, the
+ * supply left on. */
+static void set_enabled(app_t *app, bool on, bool bench)
 {
-    if (on == app->enabled) return;
+    if (on == app->enabled && bench == app->bench) return;
     app->enabled = on;
+    app->bench = bench;
     app->engaged = false;
     app->motion.started = false;   /* where the arm is comes from the servos' first readings */
     app->motion_refused = false;
@@ -81,7 +85,8 @@ static void set_enabled(app_t *app, bool on)
         app->timing_fault = false;
     }
     watch_afresh(app);   /* readings from before a power cycle say nothing */
-    sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
+    if (bench) sbus_power_limp(&app->bus);
+    else sbus_power(&app->bus, on);   /* off: the supply is cut before this returns */
     show_state(app);
 }
 
@@ -151,6 +156,15 @@ static uint8_t service_refusal(const app_t *app)
     return MSG_REFUSAL_NONE;
 }
 
+/* Torque off: the arm limp where it stands (the supply on, positions still read). */
+static void go_limp(app_t *app)
+{
+    sbus_limp(&app->bus, true);
+    app->motion.started = false;   /* moved by hand: starts again from the readings */
+    app->parked = app->jog = false;
+    watch_afresh(app);
+}
+
 /* Torque back on (the servos set up again, holding where they stand); motion then starts
  * from their readings towards start_to. */
 static void torque_on(app_t *app, uint8_t start_to)
@@ -170,12 +184,7 @@ static void on_torque(app_t *app, bool on)
     taken(app);
     if (on == app->bus.limp) {
         if (on) torque_on(app, APP_START_HOLD);
-        else {
-            sbus_limp(&app->bus, true);
-            app->motion.started = false;   /* moved by hand: starts again from the readings */
-            app->parked = app->jog = false;
-            watch_afresh(app);
-        }
+        else go_limp(app);
     }
 }
 
@@ -255,11 +264,16 @@ static bool in_service(const app_t *app)
     return app->bus.limp || app->jog || app->start_to != APP_START_PARK;
 }
 
-/* Out of a service state: the torque on and to the park pose by a checked route; false if
- * the arm was in none. */
+/* Out of a service state: the torque on and to the park pose by a checked route (on the
+ * bench, whose calibration is not trusted to park with: limp where it stands); false if the
+ * arm was in none. */
 static bool end_service(app_t *app)
 {
     if (!in_service(app)) return false;
+    if (app->bench) {
+        if (!app->bus.limp) go_limp(app);
+        return true;
+    }
     if (app->bus.limp) torque_on(app, APP_START_PARK);   /* (motion starts from the readings) */
     app->start_to = APP_START_PARK;
     if (app->jog) {
@@ -321,6 +335,11 @@ static uint8_t not_ready(const app_t *app)
 static void on_engage(app_t *app, bool on)
 {
     taken(app);
+    if (app->bench) {   /* nothing parks by the model's calibration: engage 0 goes limp */
+        if (on) refuse(app, MSG_REFUSAL_BENCH);
+        else (void)end_service(app);
+        return;
+    }
     if (app->bus.limp && app->enabled) {
         torque_on(app, APP_START_PARK);   /* the torque back on first: engage once parked */
         if (on) refuse(app, MSG_REFUSAL_SERVOS_STARTING);
@@ -352,6 +371,25 @@ static void on_engage(app_t *app, bool on)
     app->stream_servos = false;
 }
 
+/* enable: 0 off, 1 on (parks), 2 the bench (set_enabled). enable 1 on a running bench parks
+ * from where the arm is, the servos left as they are (configured again, a limp servo's stale
+ * goal would pull it there as its torque came on). */
+static void on_enable(app_t *app, uint8_t on)
+{
+    const bool bench = on == 2u;
+    if (bench && (app->engaged || app->flying)) {
+        refuse(app, app->engaged ? MSG_REFUSAL_ENGAGED : MSG_REFUSAL_FLYING);
+        return;
+    }
+    taken(app);
+    if (app->bench && on != 0u && !bench && app->bus.state == SBUS_RUNNING) {
+        app->bench = false;
+        (void)end_service(app);   /* the torque on (if limp), to the park pose */
+        return;
+    }
+    set_enabled(app, on != 0u, bench);
+}
+
 static bool send_payload(app_t *app, const uint8_t *payload, size_t len);
 
 /* At once, whatever the state: the round trip is the measurement (a pong the link cannot
@@ -379,8 +417,7 @@ static void on_frame(app_t *app, const uint8_t *payload, size_t len)
         return;
     }
     if (msg_enable_unpack(payload, len, &enable)) {
-        taken(app);
-        set_enabled(app, enable.on != 0);
+        on_enable(app, enable.on);
     } else if (msg_engage_unpack(payload, len, &engage)) {
         on_engage(app, engage.on != 0);
     } else if (msg_set_position_unpack(payload, len, &set)) {
@@ -635,6 +672,10 @@ static void watch_resets(app_t *app)
     app->servo_reset = true;
     app->engaged = false;
     app->parked = false;
+    if (app->bench) {   /* no park by the model's calibration: limp (the reset servos with the rest) */
+        go_limp(app);
+        return;
+    }
     if (!app->motion.started) return;   /* (starts from the readings anyway) */
     for (int i = 0; i < SBUS_SERVOS; ++i) units[i] = app->bus.servo[i].present_position;
     servo_units_to_joints(units, measured);
@@ -659,7 +700,7 @@ static void tick(app_t *app)
     if (now != app->last_tick_us || app->ticks_run <= 1u) {
         app->clock_stalls = 0;
     } else if (++app->clock_stalls >= APP_CLOCK_STALL_TICKS && app->enabled) {
-        set_enabled(app, false);
+        set_enabled(app, false, false);
         app->timing_fault = true;
     }
     app->last_tick_us = now;
@@ -706,7 +747,7 @@ static uint8_t arm_state(const app_t *app)
 {
     const motion_t *mo = &app->motion;
     if (!app->enabled) return MSG_STATE_OFF;
-    if (app->bus.limp) return MSG_STATE_LIMP;
+    if (app->bus.limp && app->bus.state == SBUS_RUNNING) return MSG_STATE_LIMP;   /* (the bench: once configured) */
     if (!mo->started) return MSG_STATE_STARTING;
     if (app->engaged && app->parked) return mo->arrived ? MSG_STATE_HOLDING : MSG_STATE_MOVING;
     if (app->jog) return mo->arrived ? MSG_STATE_JOGGED : MSG_STATE_JOGGING;
@@ -746,7 +787,7 @@ static void send_heartbeat(app_t *app)
     current_joints(app, q);
     hb.seq = app->heartbeat_seq++;
     hb.uptime_ms = link_ms(app);
-    hb.enabled = app->enabled;
+    hb.enabled = (uint8_t)(app->bench ? 2u : app->enabled ? 1u : 0u);   /* 2: the bench (enable 2) */
     hb.engaged = app->engaged;
     hb.unreachable = app->unreachable;
     hb.state = arm_state(app);
@@ -859,7 +900,7 @@ void app_poll(app_t *app)
 
     sbus_poll(&app->bus);
     if (app->bus.state == SBUS_FAILED) {
-        set_enabled(app, false);        /* a servo that cannot be configured: power off */
+        set_enabled(app, false, false);        /* a servo that cannot be configured: power off */
         app->servo_config_failed = true;
     }
 

@@ -94,6 +94,12 @@ void sbus_power(sbus_t *bus, bool on)
     enter(bus, on ? SBUS_BOOTING : SBUS_OFF);
 }
 
+void sbus_power_limp(sbus_t *bus)
+{
+    sbus_power(bus, true);
+    bus->limp = true;   /* configured with Torque Enable 0: nothing is commanded until sbus_limp(false) */
+}
+
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS])
 {
     if (bus->state != SBUS_RUNNING || bus->limp) {
@@ -333,8 +339,8 @@ static inline __attribute__((always_inline)) void flush_rx(sbus_t *bus)
 #define SAFE_VOLTAGE_HIGH 140u
 #define SAFE_SHUTDOWN 0x24u            /* overheating (bit 2), overload (bit 5) */
 
-/* Each write, its first register and its bytes for servo i. */
-static uint8_t write_of(unsigned w, unsigned i, uint8_t data[5])
+/* Each write, its first register and its bytes for servo i (the torque off if the bus is limp). */
+static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[5])
 {
     switch (w) {
     case CFG_W_SRL:
@@ -364,7 +370,7 @@ static uint8_t write_of(unsigned w, unsigned i, uint8_t data[5])
         data[1] = (uint8_t)(TORQUE_LIMIT_SET >> 8);
         return AX_TORQUE_LIMIT;
     default:   /* CFG_W_TORQUE_ENABLE */
-        data[0] = 1u;
+        data[0] = bus->limp ? 0u : 1u;
         return AX_TORQUE_ENABLE;
     }
 }
@@ -376,7 +382,7 @@ static uint8_t writes_needed(const sbus_t *bus, unsigned i)
 {
     uint8_t mask = 0, data[5];
     for (unsigned w = 0; w < CFG_WRITES; ++w) {
-        const uint8_t addr = write_of(w, i, data);
+        const uint8_t addr = write_of(bus, w, i, data);
         if (memcmp(bus->reply_params + (addr - SBUS_VERIFY_ADDR), data, WRITE_LEN[w]) != 0) mask |= (uint8_t)(1u << w);
     }
     return mask;
@@ -397,7 +403,7 @@ static void configure(sbus_t *bus)
         if (bus->cfg_step == CFG_WRITE) {
             uint8_t data[5];
             const unsigned w = (unsigned)__builtin_ctz(bus->cfg_mask);
-            const uint8_t addr = write_of(w, i, data);
+            const uint8_t addr = write_of(bus, w, i, data);
             len = dxl_build_write(bus->tx, sizeof bus->tx, s->id, addr, data, WRITE_LEN[w]);
             (void)request(bus, bus->tx, len, REPLY_OPTIONAL, s, 0);
         } else {

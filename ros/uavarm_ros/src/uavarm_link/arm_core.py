@@ -217,8 +217,9 @@ class ArmCore:
         if unmeant is not None:
             self._restarts = self.link.age.restarts
             if self.reenable:
-                self.link.send("enable", on=1)
-                self.log.error(f"arm: {unmeant}; enable sent again: it parks (call engage again when ready)")
+                self.link.send("enable", on=self.restarts.enabled_as)
+                self.log.error(f"arm: {unmeant}; enable sent again: {self.restarts.reenabled()} "
+                               "(call engage again when ready)")
             else:
                 self.log.error(f"arm: {unmeant}; left so (reenable is off): enable it again to park it")
         elif self.link.age.restarts > self._restarts:

@@ -52,8 +52,15 @@ READ_LIMIT = 65536
 # s between keep-alives: the board parks an engaged, limp or jogged arm after
 # link.silence_timeout (1 s) without a frame
 KEEP_ALIVE_S = 0.2
+# enable's value for the bench, and the heartbeat's enabled then (model/messages.py)
+BENCH = 2
 # the resets a board does not mean (heartbeat.reset_cause): an enabled arm comes up limp
 UNMEANT_RESETS = ("watchdog", "window_watchdog")
+
+
+def bench_note(hb: dict) -> str:
+    """What a status line adds for a bench-enabled arm (heartbeat enabled 2)."""
+    return " (bench: enabled limp)" if hb["enabled"] == BENCH else ""
 
 
 class LinkError(Exception):
@@ -160,6 +167,7 @@ class RestartWatch:
     def __init__(self):
         self.last = None           # the previous heartbeat
         self.count = 0             # such restarts seen
+        self.enabled_as = 1        # enable's value before the last such restart (BENCH: limp again)
 
     def check(self, hb: dict) -> str | None:
         """What to report if hb shows such a restart, else None."""
@@ -169,10 +177,16 @@ class RestartWatch:
         if not (went_back and last["enabled"] and (cause in UNMEANT_RESETS or hb["last_fault"])):
             return None
         self.count += 1
+        self.enabled_as = last["enabled"]
         after = f" after a {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
         return (f"the board restarted while enabled (reset cause {cause}{after}, up {hb['uptime_ms'] / 1000:.1f} s "
                 f"again): it came up with the servo power off, the arm limp"
-                + ("; it was engaged" if last["engaged"] else ""))
+                + ("; it was engaged" if last["engaged"] else "")
+                + ("; it was bench-enabled (enable 2, limp)" if last["enabled"] == BENCH else ""))
+
+    def reenabled(self) -> str:
+        """What enabling it again as it was (enable_as) does."""
+        return "it parks" if self.enabled_as != BENCH else "limp again, as on the bench"
 
 
 class ArmLink:
@@ -312,13 +326,20 @@ class ArmLink:
                 return hb
         raise CommandRefused(why(hb))
 
-    def enable(self, on: bool = True) -> dict:
+    def enable(self, on: bool = True, *, limp: bool = False) -> dict:
         """enable 1 is taken once the servos are configured (the heartbeat's state past
-        "starting"), so an engage may follow at once."""
-        self.send("enable", on=int(on))
+        "starting"), so an engage may follow at once. limp: enable 2, the bench (to calibrate
+        the servos): configured with the torque off, the arm limp where it hangs; the board
+        never moves it on its own, and engage is refused, until enable (1) parks it."""
+        value = BENCH if on and limp else int(on)
+        self.send("enable", on=value)
         starting = [name for name, _ in messages.STATES].index("starting")
-        return self._confirm(lambda hb: hb["enabled"] == int(on) and (not on or hb["state"] > starting),
-                             lambda hb: f"enable {int(on)} not taken; faults {fault_names(hb['faults'])}")
+
+        def why(hb):
+            if hb["refusal"]:
+                return f"enable {value} refused: {refusal_reason(hb['refusal'])}"
+            return f"enable {value} not taken; faults {fault_names(hb['faults'])}"
+        return self._confirm(lambda hb: hb["enabled"] == value and (not on or hb["state"] > starting), why)
 
     def disable(self) -> dict:
         return self.enable(False)

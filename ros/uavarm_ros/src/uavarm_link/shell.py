@@ -18,14 +18,16 @@ import sys
 import threading
 import time
 
-from .client import KEEP_ALIVE_S, LinkError, RestartWatch
+from .client import BENCH, KEEP_ALIVE_S, LinkError, RestartWatch, bench_note
 from .messages import fault_names, state_name
 from .shared import SharedLink
 
 POLL_S = 0.02
 
 COMMANDS = {
-    "enable": "servo power on (taken once the servos are configured)",
+    "enable": "servo power on (taken once the servos are configured); from the bench: parks",
+    "enable limp": "the bench, to calibrate the servos: power on, the torque off, never moved by the "
+                   "board on its own (silence, the drone, disengage: limp); engage refused until enable",
     "disable": "servo power off",
     "engage": "stabilise at the set position (kept engaged until disengage or the end)",
     "disengage": "park",
@@ -62,6 +64,8 @@ def parse(line: str) -> tuple[str, list[float]] | None:
     if re.fullmatch(r"[-+.\d]", words[0][0]) or words[0].lower() in ("nan", "inf", "-inf"):
         words.insert(0, "goto")                               # a bare target (a CSV row)
     name, args = words[0].lower(), words[1:]
+    if name == "enable" and [a.lower() for a in args] == ["limp"]:
+        return "enable limp", []
     arity = {"goto": (3, 4), "wait": (1, 1), "jog": (2, 2)}.get(name, (0, 0))
     known = {"enable", "disable", "engage", "disengage", "goto", "wait", "status", "limp", "stiff", "jog",
              "help", "quit", "exit"}
@@ -80,7 +84,7 @@ def parse(line: str) -> tuple[str, list[float]] | None:
 
 def status_line(hb: dict) -> str:
     faults = fault_names(hb["faults"])
-    return (f"[{hb['uptime_ms'] / 1000:7.1f} s] {state_name(hb['state'])}, set "
+    return (f"[{hb['uptime_ms'] / 1000:7.1f} s] {state_name(hb['state'])}{bench_note(hb)}, set "
             f"({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm, "
             f"faults: {', '.join(faults) if faults else 'none'}")
 
@@ -120,8 +124,8 @@ class Session:
         if text is None:
             return
         if self.reenable:
-            self.link.send("enable", on=1)
-            text += "; enabled again: it parks (engage again when ready)"
+            self.link.send("enable", on=self.restarts.enabled_as)
+            text += f"; enabled again: {self.restarts.reenabled()} (engage again when ready)"
         else:
             text += "; left so (--no-reenable)"
         self.restart_error = text
@@ -130,7 +134,7 @@ class Session:
 
     def _show_changes(self, hb: dict) -> None:
         """The live status: a line whenever the state or the faults change."""
-        key = (hb["state"], hb["faults"])
+        key = (hb["state"], hb["faults"], hb["enabled"])
         if key != self._shown:
             self._shown = key
             self.say(status_line(hb), self.out)
@@ -161,8 +165,8 @@ class Session:
         if name == "jog":
             hb = link.jog(int(numbers[0]), angle=math.radians(numbers[1]))
             return status_line(hb)
-        action = {"enable": link.enable, "disable": link.disable, "engage": link.engage,
-                  "disengage": link.disengage, "status": link.next_heartbeat,
+        action = {"enable": link.enable, "enable limp": lambda: link.enable(limp=True), "disable": link.disable,
+                  "engage": link.engage, "disengage": link.disengage, "status": link.next_heartbeat,
                   "limp": lambda: link.torque(False), "stiff": lambda: link.torque(True)}[name]
         return status_line(action())
 
@@ -219,7 +223,10 @@ def run_shell(port: str, baud: int, lines, interactive: bool, out=None, err=None
             return 1
         last = session.link.heartbeats[-1] if session.link.heartbeats else None
         held = "engaged" if session.link.engaged else last and state_name(last["state"])
-        if held in ("engaged", "limp", "jogging", "jogged"):
+        if held in ("limp", "jogging", "jogged") and last["enabled"] == BENCH:
+            session.say(f"end of the session: the arm is {held} on the bench and goes limp (it stays so) once the "
+                        "link has been silent for its timeout", out)
+        elif held in ("engaged", "limp", "jogging", "jogged"):
             session.say(f"end of the session: the arm is {held} and parks once the link has been silent for its "
                         "timeout", out)
         return 0
