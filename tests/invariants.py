@@ -94,7 +94,7 @@ class Invariants:
         for k in range(self.n_hb, len(board.heartbeats)):
             hb, t = board.heartbeats[k], board.heartbeat_times[k]
             assert not hb["engaged"] or hb["enabled"], hb
-            assert hb["enabled"] == self.power_at(t)[0], (t, hb)
+            assert bool(hb["enabled"]) == self.power_at(t)[0], (t, hb)   # (2: on, the bench)
             assert all(math.isfinite(hb[f]) for f in ("set_x", "set_y", "set_z", "q1", "q2", "q3")), hb
             assert hb["faults"] < 1 << len(messages.FAULTS), hb
             before = board.heartbeat_times[k - 1] if k > 0 else 0.0
