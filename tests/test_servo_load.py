@@ -165,8 +165,8 @@ def test_true_joints_follow_the_servos_as_mounted_and_servo_joints_the_model():
     board = SimBoard(MODEL, servo_truth=REVERSED)
     board.joint_servos[1].turn_by_hand(400.0)
     assert board.true_joints()[1] == pytest.approx(math.radians(-(400 - 497) / UNITS_PER_DEG))
-    assert board.servo_joints()[1] == pytest.approx(math.radians(MODEL.servos[1].direction * (400 - MODEL.servos[1].zero)
-                                                                 / UNITS_PER_DEG))
+    model_zero, model_direction = MODEL.servos[1].zero, MODEL.servos[1].direction
+    assert board.servo_joints()[1] == pytest.approx(math.radians(model_direction * (400 - model_zero) / UNITS_PER_DEG))
 
 
 @pytest.mark.parametrize("truth", [((512, 512), (1, 1, 1)), ((512, 512, 512), (1, 0, 1)), ((512, 512, 2000), (1, 1, 1)),

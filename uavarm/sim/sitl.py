@@ -66,11 +66,15 @@ class SitlStalled(RuntimeError):
 
 SCENARIOS = "level, tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (deg, deg, Hz)"
 
-# How long (simulated s) a hand takes to turn the board to a face.
+# How long (simulated s) a hand takes to turn the board to a face, and how far (rad) the axis
+# it turns about is from the exact one: a face is reached a few degrees off (up to twice this),
+# as by hand. (Turns about exact axes would leave cross-axis terms of the gyro unseen.)
 TURN_S = 1.5
+HAND_OFF_AXIS = math.radians(3.0)
 COMMANDS = """commands (a hand on the simulated hardware):
   turn X|Y|Z up|down  turn the board by hand, over 1.5 s, until that IMU axis (as printed on
-                      the breakout) points straight up or down; then hold it still
+                      the breakout) points up or down, a few degrees off as by hand; then hold
+                      it still
   level               turn the board back level (the arm's base z up)
   move joint J DEG    turn limp joint J (1-3) by hand to DEG degrees (its true angle)
   hold zero           hold every limp joint at its true 0 deg (hanging straight down, joint 1
@@ -216,21 +220,27 @@ class Sitl:
 
     def _turn_face(self, axis: str, up: bool) -> str:
         direction = self.board.imu_axis(AXES[axis]) * (1.0 if up else -1.0)
-        return self._turn_to(direction, f"the IMU's {axis.upper()} axis points {'up' if up else 'down'}")
+        return self._turn_to(direction, f"the IMU's {axis.upper()} axis points {'up' if up else 'down'}", off_axis=True)
 
-    def _turn_to(self, target: np.ndarray, what: str) -> str:
-        """The board turned by hand, the shortest way, until `target` (base axes) points up."""
+    def _turn_to(self, target: np.ndarray, what: str, off_axis: bool = False) -> str:
+        """The board turned by hand, the shortest way, until `target` (base axes) points up
+        (off_axis: about an axis HAND_OFF_AXIS off that way's, so that it ends a few degrees off)."""
         start = self._orientation()
         up = start[2]                                  # the world's up in base axes
         axis = np.cross(target, up)
         angle = math.atan2(np.linalg.norm(axis), float(target @ up))
-        if np.linalg.norm(axis) < 1e-9:                # already there, or upside down
-            if angle < 0.5 * math.pi:
-                return f"already so: {what}"
-            other = np.eye(3)[int(np.argmin(np.abs(target)))]
-            axis = np.cross(target, other)
-        turn = axis / np.linalg.norm(axis) * angle
-        self.board.motion = Turning(start, turn, self.board.time, TURN_S)
+        if angle < (3 * HAND_OFF_AXIS if off_axis else 1e-6):
+            return f"already so: {what}"
+        if np.linalg.norm(axis) < 1e-9:                # upside down
+            # flipped over the next axis (Z over X, X over Y, Y over Z): the six faces in the
+            # IMU calibration's order then turn the board over each of its axes
+            other = np.eye(3)[(int(np.argmax(np.abs(target))) + 1) % 3]
+            axis = other - (other @ target) * target
+        axis = axis / np.linalg.norm(axis)
+        if off_axis:    # a hand's turn is never about the exact axis
+            aside = np.cross(axis, target)
+            axis = math.cos(HAND_OFF_AXIS) * axis + math.sin(HAND_OFF_AXIS) * aside / np.linalg.norm(aside)
+        self.board.motion = Turning(start, axis * angle, self.board.time, TURN_S)
         return f"turning the board by hand, {math.degrees(angle):.0f} deg over {TURN_S:g} s, until {what}"
 
     def _move_joint(self, joint: str, degrees: str) -> str:
@@ -461,22 +471,18 @@ def link_delay_of(text: str) -> tuple[float, float]:
     return values[0] / 1000, values[-1] / 1000
 
 
-def integers_of(text: str, what: str, allowed) -> tuple[int, int, int]:
-    """Three comma-separated integers, each in `allowed` (a range or a set)."""
+def integers_of(text: str, what: str, allowed: set[int] | range, described: str) -> tuple[int, int, int]:
+    """Three comma-separated integers, each in `allowed` (`described` says which)."""
     try:
         values = tuple(int(v) for v in text.split(","))
         if len(values) != 3 or not all(v in allowed for v in values):
             raise ValueError
     except ValueError:
-        raise ValueError(f"{what} {text!r}: use three of {allowed_text(allowed)}, comma-separated") from None
+        raise ValueError(f"{what} {text!r}: use three of {described}, comma-separated") from None
     return values
 
 
-def allowed_text(allowed) -> str:
-    return f"{allowed.start} to {allowed.stop - 1}" if isinstance(allowed, range) else " or ".join(map(str, sorted(allowed)))
-
-
-def servo_truth_of(model, zeros: tuple[int, ...] | None, directions: tuple[int, ...] | None):
+def mounted_servos(model, zeros: tuple[int, ...] | None, directions: tuple[int, ...] | None):
     """SimBoard's servo_truth from what was given, the rest as the model file says (None: all of it)."""
     if zeros is None and directions is None:
         return None
@@ -487,17 +493,19 @@ def main(scenario: str | None, speed: float, imu: str = "white", seed: int = 0,
          imu_mounting: tuple[float, float, float] | None = None, servo_lag: float | None = None,
          link_delay: tuple[float, float] = (0.0, 0.0), supply: float | None = None,
          servo_zeros: tuple[int, int, int] | None = None, servo_directions: tuple[int, int, int] | None = None,
-         commands=None) -> int:
+         motors_on: bool = False, commands=None) -> int:
     """`uavarm sitl`: the board served in real time, commands (COMMANDS) read from `commands`
-    (default stdin)."""
+    (default stdin). Its scenarios are all on the bench: the IMU feels the propellers only
+    with motors_on (the `calibrated` and `datasheet` profiles' vibration)."""
     model = config.load()
-    sitl = Sitl(scenario, speed=speed, model=model, sensor=Mpu6050Sensor(imu, seed=seed),
+    sensor = Mpu6050Sensor(imu, seed=seed, vibration_from=0.0 if motors_on else math.inf)
+    sitl = Sitl(scenario, speed=speed, model=model, sensor=sensor,
                 imu_mounting_rpy_deg=imu_mounting, servo_lag=servo_lag, link_delay=link_delay, supply=supply,
-                servo_truth=servo_truth_of(model, servo_zeros, servo_directions))
+                servo_truth=mounted_servos(model, servo_zeros, servo_directions))
     lag = sitl.board.model.servo_response_lag if servo_lag is None else servo_lag
     print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x, IMU {imu} "
-          f"seed {seed}, servo lag {lag * 1000:g} ms, supply {sitl.board.bus.supply.volts:g} V, "
-          f"link delay {link_delay[0] * 1000:g} ms in, "
+          f"seed {seed}, motors {'on' if motors_on else 'off'}, servo lag {lag * 1000:g} ms, "
+          f"supply {sitl.board.bus.supply.volts:g} V, link delay {link_delay[0] * 1000:g} ms in, "
           f"{link_delay[1] * 1000:g} ms out); Ctrl-C stops", flush=True)
     zeros, directions = sitl.board.servo_truth
     print(f"servos mounted with zeros {', '.join(f'{z:g}' for z in zeros)} units, directions "
