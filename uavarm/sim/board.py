@@ -212,7 +212,7 @@ class SimBoard:
         self._truth_zero, self._truth_direction = servo_truth_of(m, servo_truth)
         self.arm_masses = arm_masses or ArmMasses()
         # the arm's shafts, joint by joint (still there if a cable is pulled off the bus)
-        self.joint_servos = [next((sv for sv in servos if sv.id == s.id), None) for s in m.servos]
+        self.joint_servos = [next((sv for sv in self.bus.servos if sv.id == s.id), None) for s in m.servos]
         for j, servo in enumerate(self.joint_servos):
             if servo is not None:
                 servo.outside_torque = functools.partial(self._gravity_on_shaft, j)
