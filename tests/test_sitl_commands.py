@@ -10,16 +10,16 @@ from __future__ import annotations
 import io
 import math
 import os
-import select
+import queue
 import signal
 import subprocess
 import sys
+import threading
 
 import numpy as np
 import pytest
 
 from conftest import wait_simulated
-from uavarm.sim.board import Gravity
 from uavarm.sim.imu_model import Mpu6050Sensor
 from uavarm.sim.sitl import HAND_OFF_AXIS, TURN_S, Sitl
 
@@ -148,9 +148,11 @@ def test_uavarm_sitl_takes_commands_on_stdin_and_runs_on_after_eof():
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
 
+    lines = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(text) for text in proc.stdout], daemon=True).start()
+
     def line():
-        assert select.select([proc.stdout], [], [], 60)[0], "no output"     # a hang guard
-        return proc.stdout.readline()
+        return lines.get(timeout=60)         # a hang guard
     try:
         assert line().startswith("simulated board on /dev/pts/")
         assert "zeros 520, 497, 505 units, directions +1, -1, +1" in line()

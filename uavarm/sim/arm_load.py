@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-G = 9.80665                 # m/s^2
+from .drone import G
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,8 @@ Where the documentation is silent this simulator chooses, and says so:
   optionally through a first-order lag; with `deadband` the lagging shaft stops once it is
   within the Compliance Margin of the profile (no torque there), so it rests up to that many
   units short of the goal. Compliance and punch are not modelled (the shaft does not sag
-  under its load); Overload can be injected with `AX12.overload`.
+  under its load); Overload can be injected with `AX12.overload`. In wheel mode the shaft
+  turns at (Moving Speed bits 0-9) / 1023 of the no-load speed and the position wraps at 1024.
 - Present Load (40-41) is the torque the servo's motor applies, as a share of its stall
   torque at the supply it has (1.5 N m at 12 V, in proportion to the voltage, as its speed),
   0..1023 in bits 0-9, capped at Torque Limit, with bit 10 its sense: 0 = CCW (the sense in
@@ -41,8 +42,7 @@ Where the documentation is silent this simulator chooses, and says so:
   motor's output, not a torque sensor's: so it is the torque the motor drives with, which
   holds a shaft still against the outside torque (`AX12.outside_torque`, e.g. the arm's
   weight: a joint pulled CW reads CCW). It is worked out when a READ covers it; a limp
-  servo (torque off) reads 0. In wheel mode the shaft turns at
-  (Moving Speed bits 0-9) / 1023 of the no-load speed and the position wraps at 1024.
+  servo (torque off) reads 0.
 - The LED blinks (`alarm_led_blinking`) while the last instruction's error bits or a
   lasting condition (voltage, temperature, overload) meet Alarm LED; Shutdown zeroes
   Torque Limit on the same bits, and again at every step while a condition lasts.

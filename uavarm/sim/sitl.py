@@ -115,7 +115,8 @@ class Sitl:
                  link_delay: tuple[float, float] = (0.0, 0.0), warn=None, **board_options):
         """link_delay: seconds (simulated) the link's bytes take to the board and back from it;
         warn(text): where lagging behind real time is reported (default: stderr);
-        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag, supply: the hardware as it is)."""
+        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag, supply, servo_truth: the
+        hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
         if not all(0 <= d <= 1 for d in link_delay):
@@ -178,7 +179,10 @@ class Sitl:
             while True:
                 if prompt:
                     print("sitl> ", end="", flush=True)
-                line = stream.readline()
+                try:
+                    line = stream.readline()
+                except (OSError, ValueError):       # no usable stdin: the board runs on
+                    return
                 if not line:
                     return
                 if line.strip():
@@ -220,7 +224,8 @@ class Sitl:
 
     def _turn_face(self, axis: str, up: bool) -> str:
         direction = self.board.imu_axis(AXES[axis]) * (1.0 if up else -1.0)
-        return self._turn_to(direction, f"the IMU's {axis.upper()} axis points {'up' if up else 'down'}", off_axis=True)
+        way = "up" if up else "down"
+        return self._turn_to(direction, f"the IMU's {axis.upper()} axis points {way}", off_axis=True)
 
     def _turn_to(self, target: np.ndarray, what: str, off_axis: bool = False) -> str:
         """The board turned by hand, the shortest way, until `target` (base axes) points up
