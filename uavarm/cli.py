@@ -251,6 +251,15 @@ def parser() -> argparse.ArgumentParser:
     st.add_argument("--link-delay-ms", default="0", metavar="UP[,DOWN]",
                     help="the link's delay to the board and back from it (ms; DOWN as UP if left out; "
                          "default: %(default)s)")
+    st.add_argument("--motors-on", action="store_true",
+                    help="the propellers' vibration in the IMU (calibrated and datasheet profiles); default: "
+                         "off, as on the bench")
+    st.add_argument("--servo-zeros", default=None, metavar="U1,U2,U3",
+                    help="the units each simulated servo reads with its joint really at 0 deg, whatever the "
+                         "model file says (default: as the model file says)")
+    st.add_argument("--servo-directions", default=None, metavar="D1,D2,D3",
+                    help="+1 or -1 per servo: whether its joint's angle really grows with its units "
+                         "(-1: mounted the other way round; default: as the model file says)")
     st.add_argument("--servo-bus", action="store_true",
                     help="instead of the board: a simulated servo bus with one AX-12A as it ships (id 1 at "
                          "1 Mbit/s), as through a Dynamixel adapter, for `uavarm servos setup`")
@@ -333,6 +342,10 @@ def main(argv=None) -> int:
             sitl.motion_of(args.scenario)
             args.imu_mounting = sitl.angles_of(args.imu_mounting) if args.imu_mounting else None
             args.link_delay = sitl.link_delay_of(args.link_delay_ms)
+            args.servo_zeros = args.servo_zeros and sitl.integers_of(
+                args.servo_zeros, "servo zeros", range(1024), "0 to 1023")
+            args.servo_directions = args.servo_directions and sitl.integers_of(
+                args.servo_directions, "servo directions", {1, -1}, "1 or -1")
         except ValueError as exc:
             ap.error(str(exc))
     try:
@@ -377,7 +390,8 @@ def run(args) -> int:
         _require_current_code()
         return sitl.main(args.scenario, args.speed, imu=args.imu, seed=args.seed, imu_mounting=args.imu_mounting,
                          servo_lag=None if args.servo_lag_ms is None else args.servo_lag_ms / 1000,
-                         link_delay=args.link_delay, supply=args.supply)
+                         link_delay=args.link_delay, supply=args.supply, servo_zeros=args.servo_zeros,
+                         servo_directions=args.servo_directions, motors_on=args.motors_on)
     return demo(args)
 
 

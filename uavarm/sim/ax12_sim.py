@@ -32,9 +32,17 @@ Where the documentation is silent this simulator chooses, and says so:
 - Motion is no-load: the position follows a speed-limited profile toward the goal,
   optionally through a first-order lag; with `deadband` the lagging shaft stops once it is
   within the Compliance Margin of the profile (no torque there), so it rests up to that many
-  units short of the goal. Compliance, punch and load are not modelled;
-  Overload can be injected with `AX12.overload`. In wheel mode the shaft turns at
-  (Moving Speed bits 0-9) / 1023 of the no-load speed and the position wraps at 1024.
+  units short of the goal. Compliance and punch are not modelled (the shaft does not sag
+  under its load); Overload can be injected with `AX12.overload`. In wheel mode the shaft
+  turns at (Moving Speed bits 0-9) / 1023 of the no-load speed and the position wraps at 1024.
+- Present Load (40-41) is the torque the servo's motor applies, as a share of its stall
+  torque at the supply it has (1.5 N m at 12 V, in proportion to the voltage, as its speed),
+  0..1023 in bits 0-9, capped at Torque Limit, with bit 10 its sense: 0 = CCW (the sense in
+  which the position grows), 1 = CW. The e-manual calls it an inferred value, from the
+  motor's output, not a torque sensor's: so it is the torque the motor drives with, which
+  holds a shaft still against the outside torque (`AX12.outside_torque`, e.g. the arm's
+  weight: a joint pulled CW reads CCW). It is worked out when a READ covers it; a limp
+  servo (torque off) reads 0.
 - The LED blinks (`alarm_led_blinking`) while the last instruction's error bits or a
   lasting condition (voltage, temperature, overload) meet Alarm LED; Shutdown zeroes
   Torque Limit on the same bits, and again at every step while a condition lasts.
@@ -74,6 +82,7 @@ BYTE_GAP_TIMEOUT = 0.100        # s: a longer gap inside an instruction discards
 BITS_PER_BYTE = 10              # start + 8 data + stop
 RETURN_DELAY_UNIT = 2e-6        # s per Return Delay Time unit
 NO_LOAD_RPM = 59.0              # at 12 V
+STALL_TORQUE_NM = 1.5           # at 12 V (e-manual: 1.5 N m at 12 V, 1.5 A)
 NOMINAL_VOLTAGE = 12.0
 RPM_PER_SPEED_UNIT = 0.111      # Moving Speed / Present Speed unit, joint mode
 UNITS_PER_DEGREE = 1023 / 300
@@ -195,6 +204,9 @@ class AX12:
         self.reply_to_bad_checksum = reply_to_bad_checksum
         self.firmware_version = firmware_version   # not documented for the AX-12A
         self.overload = False       # fault injection: the load cannot be controlled
+        # What turns the shaft from outside, when Present Load is read: a function giving N m,
+        # CCW (position growing) positive, e.g. gravity on the arm (SimBoard); None: nothing.
+        self.outside_torque = None
         self.powered = True
         self.table = bytearray(TABLE_SIZE)
         self._pos = float(position)         # shaft, in units
@@ -243,6 +255,12 @@ class AX12:
     @property
     def wheel_mode(self) -> bool:
         return self.register("cw_angle_limit") == 0 and self.register("ccw_angle_limit") == 0
+
+    @property
+    def torque_on(self) -> bool:
+        """Powered, Torque Enable set and Torque Limit above 0: the motor holds the shaft."""
+        t = self.table
+        return self.powered and bool(t[24]) and bool(t[34] or t[35])
 
     @property
     def return_delay(self) -> float:
@@ -375,6 +393,8 @@ class AX12:
             addr, n = params
             if n == 0 or addr + n > TABLE_SIZE:
                 return ERR_RANGE, b""
+            if addr < 42 and addr + n > 40:
+                self._latch_load()
             return 0, bytes(self.table[addr:addr + n])
         if inst in (INST_WRITE, INST_REG_WRITE):
             if len(params) < 2:
@@ -458,6 +478,26 @@ class AX12:
     def max_speed(self) -> float:
         """No-load speed cap in units/s: 59 rpm at 12 V, proportional to the supply."""
         return NO_LOAD_RPM * max(self.voltage, 0.0) / NOMINAL_VOLTAGE * UNITS_PER_S_PER_RPM
+
+    def stall_torque(self) -> float:
+        """The motor's full output in N m: 1.5 N m at 12 V, proportional to the supply."""
+        return STALL_TORQUE_NM * max(self.voltage, 0.0) / NOMINAL_VOLTAGE
+
+    def present_load(self) -> int:
+        """Present Load now: the torque the motor applies to hold the shaft against the outside
+        torque, 0..1023 of its stall torque (capped at Torque Limit), bit 10 set when it is CW;
+        0 with the torque off."""
+        stall = self.stall_torque()
+        if not self.torque_on or self.outside_torque is None or stall <= 0:
+            return 0
+        limit = self.register("torque_limit")
+        applied = -self.outside_torque()               # N m, CCW positive
+        magnitude = min(round(abs(applied) / stall * 1023), limit, 1023)
+        return magnitude | (0x400 if applied < 0 and magnitude else 0)
+
+    def _latch_load(self) -> None:
+        load = self.present_load()
+        self.table[40], self.table[41] = load & 0xFF, load >> 8
 
     def commanded_speed(self) -> float:
         """Joint-mode speed toward the goal in units/s: Moving Speed, capped; 0 = the cap."""

@@ -13,6 +13,7 @@ the tick interrupt and the clock. Everything the board says comes back as link b
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field, replace
 
@@ -22,6 +23,7 @@ from .. import rotation
 from ..build import firmware
 from ..link import llcp, messages
 from . import ax12_sim
+from .arm_load import ArmMasses, gravity_torques
 from ..model import attitude, config, servo as servo_map
 from .imu_model import Mpu6050Sensor
 from .mpu6050_sim import Mpu6050
@@ -131,6 +133,26 @@ class Turning:
         return tuple(self.orientation(t)[2]), tuple(self._progress(t)[1] * np.asarray(self.turn, dtype=float))
 
 
+UNITS_PER_RAD = ax12_sim.UNITS_PER_DEGREE * 180 / math.pi
+
+
+def servo_truth_of(model, truth) -> tuple[tuple[float, ...], tuple[int, ...]]:
+    """(zeros, directions) of the servos as mounted: `truth` checked, or the model file's."""
+    if truth is None:
+        return tuple(float(s.zero) for s in model.servos), tuple(int(s.direction) for s in model.servos)
+    try:
+        zeros, directions = truth
+        zeros = tuple(float(z) for z in zeros)
+        directions = tuple(int(d) for d in directions)
+    except (TypeError, ValueError):
+        raise ValueError(f"servo truth {truth!r}: use ((ZERO, ZERO, ZERO), (DIR, DIR, DIR))") from None
+    n = len(model.servos)
+    if len(zeros) != n or len(directions) != n or not all(d in (1, -1) for d in directions) \
+            or not all(0 <= z <= 1023 for z in zeros):
+        raise ValueError(f"servo truth {truth!r}: {n} zeros in servo units (0 to 1023) and {n} directions (1 or -1)")
+    return zeros, directions
+
+
 def reset_cause_value(cause: str) -> int:
     """The heartbeat's reset_cause of a RESET_CAUSES name."""
     causes = [name for name, _ in messages.RESET_CAUSES]
@@ -155,6 +177,13 @@ class SimBoard:
     hardware as it is, for calibration) and the sensor model samples it at the chip's
     internal rate.
 
+    The servos are mounted as the model file's servo zeros and directions say, unless
+    servo_truth = ((zero units per joint), (direction per joint)) says otherwise (the
+    hardware as it is, for calibration: a servo offset or mounted the other way round).
+    That and arm_masses (arm_load.ArmMasses) are the physical arm: gravity's torque about
+    each joint, at the shafts' true angles and the base's attitude(t), is what each servo
+    holding its joint reads as Present Load.
+
     Faults of the board itself, for the tests: imu_clock_error, how far the IMU's own clock
     runs from the tick's (0.02: 2 % fast; 0: a sample just before every tick); and the
     attributes tick_interrupt (False: the tick timer's interrupt stops), clock_frozen (True:
@@ -165,7 +194,9 @@ class SimBoard:
                  poll_us: int = 100, lib=None, bus_echo: bool = False, record: bool = True,
                  sensor: Mpu6050Sensor | None = None, imu_clock_error: float = 0.0,
                  imu_mounting_rpy_deg: tuple[float, float, float] | None = None, servo_lag: float | None = None,
-                 supply: ax12_sim.Supply | float | None = None):
+                 supply: ax12_sim.Supply | float | None = None,
+                 servo_truth: tuple[tuple[float, float, float], tuple[int, int, int]] | None = None,
+                 arm_masses: ArmMasses | None = None):
         self.model = model or config.load()
         self.ffi, self.lib = lib or firmware.default()
         m = self.model
@@ -178,6 +209,13 @@ class SimBoard:
                                     deadband=lag > 0) for s in m.servos]
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo, supply=ax12_sim.supply_of(supply))
         self.bus.power(False)
+        self._truth_zero, self._truth_direction = servo_truth_of(m, servo_truth)
+        self.arm_masses = arm_masses or ArmMasses()
+        # the arm's shafts, joint by joint (still there if a cable is pulled off the bus)
+        self.joint_servos = [next((sv for sv in self.bus.servos if sv.id == s.id), None) for s in m.servos]
+        for j, servo in enumerate(self.joint_servos):
+            if servo is not None:
+                servo.outside_torque = functools.partial(self._gravity_on_shaft, j)
         self.motion = motion or Gravity()
         self.sensor = sensor or Mpu6050Sensor("white", seed=0)
         # the IMU as it really sits (the model file's mounting unless told otherwise: calibration)
@@ -344,7 +382,32 @@ class SimBoard:
         return [float(servo_map.units_to_joint(self.model, j, command.goal[s.id]))
                 for j, s in enumerate(self.model.servos)]
 
+    def imu_axis(self, k: int) -> np.ndarray:
+        """The IMU's axis k (0: X, 1: Y, 2: Z, as printed on it) in the base's axes, as it really sits."""
+        return self._base_to_imu[k].copy()
+
+    def true_joints(self) -> list[float]:
+        """The joints' physical angles (rad), from the shafts as the servos are really mounted
+        (servo_truth); a joint without its servo: 0."""
+        return [0.0 if sv is None else d * (sv.position - z) / UNITS_PER_RAD
+                for sv, z, d in zip(self.joint_servos, self._truth_zero, self._truth_direction)]
+
+    @property
+    def servo_truth(self) -> tuple[tuple[float, ...], tuple[int, ...]]:
+        """(zeros, directions) of the servos as really mounted."""
+        return self._truth_zero, self._truth_direction
+
+    def truth_units(self, joint: int, angle: float) -> float:
+        """The servo position (units) at which a joint really is at `angle` (rad)."""
+        return self._truth_zero[joint] + self._truth_direction[joint] * angle * UNITS_PER_RAD
+
+    def _gravity_on_shaft(self, joint: int) -> float:
+        """The torque (N m) gravity exerts on a joint's servo shaft now, CCW positive."""
+        up = specific_force_up(*self.motion.attitude(self.bus.time))
+        torque = gravity_torques(self.model, self.true_joints(), up, self.arm_masses)[joint]
+        return self._truth_direction[joint] * torque
+
     def servo_joints(self) -> list[float]:
-        """The simulated shafts' joint angles (rad)."""
+        """The simulated shafts' joint angles (rad) as the model file maps them."""
         return [float(servo_map.units_to_joint(self.model, j, self.bus.servo(s.id).position))
                 for j, s in enumerate(self.model.servos)]

@@ -15,6 +15,11 @@ whatever the load.
 
 Scenarios: `level` (default), `tilt:ROLL,PITCH` (degrees, held still) and
 `rock:ROLL,PITCH,HZ` (bench tilting: sinusoidal roll and pitch of those amplitudes).
+
+A hand on the hardware, for rehearsing the bring-up: commands typed at the SITL's own
+terminal (`read_commands`, or `submit` / `handle` from a test) turn the board to a face,
+move a limp joint, or say where everything is (COMMANDS). They run in the board's thread
+between two slices of its run, so the board never sees half a command.
 """
 from __future__ import annotations
 
@@ -28,10 +33,15 @@ import threading
 import time
 import tty
 from collections import deque
+from concurrent.futures import CancelledError, Future
 
+import numpy as np
+
+from .. import rotation
 from .ax12_sim import AX12, AX12Bus
-from .board import Gravity, Rocking, SimBoard, reset_cause_value
+from .board import Gravity, Rocking, SimBoard, Turning, reset_cause_value
 from .imu_model import Mpu6050Sensor
+from ..model import config
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
 SLICE_S = 0.002
@@ -55,6 +65,28 @@ class SitlStalled(RuntimeError):
 
 
 SCENARIOS = "level, tilt:ROLL,PITCH (deg) or rock:ROLL,PITCH,HZ (deg, deg, Hz)"
+
+# How long (simulated s) a hand takes to turn the board to a face, and how far (rad) the axis
+# it turns about is from the exact one: a face is reached a few degrees off (up to twice this),
+# as by hand. (Turns about exact axes would leave cross-axis terms of the gyro unseen.)
+TURN_S = 1.5
+HAND_OFF_AXIS = math.radians(3.0)
+COMMANDS = """commands (a hand on the simulated hardware):
+  turn X|Y|Z up|down  turn the board by hand, over 1.5 s, until that IMU axis (as printed on
+                      the breakout) points up or down, a few degrees off as by hand; then hold
+                      it still
+  level               turn the board back level (the arm's base z up)
+  move joint J DEG    turn limp joint J (1-3) by hand to DEG degrees (its true angle)
+  hold zero           hold every limp joint at its true 0 deg (hanging straight down, joint 1
+                      turned to +x): the servo calibration's zero pose
+  where               the joints' true angles, the board's attitude, each servo's state
+  help                this list"""
+AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def degrees_text(radians: float) -> str:
+    """An angle in degrees to 0.1, never "-0.0"."""
+    return f"{round(math.degrees(radians), 1) + 0.0:.1f}"
 
 
 def motion_of(scenario: str | None):
@@ -83,7 +115,8 @@ class Sitl:
                  link_delay: tuple[float, float] = (0.0, 0.0), warn=None, **board_options):
         """link_delay: seconds (simulated) the link's bytes take to the board and back from it;
         warn(text): where lagging behind real time is reported (default: stderr);
-        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag, supply: the hardware as it is)."""
+        board_options: SimBoard's (sensor, imu_mounting_rpy_deg, servo_lag, supply, servo_truth: the
+        hardware as it is)."""
         if not speed > 0:
             raise ValueError(f"speed must be positive, got {speed}")
         if not all(0 <= d <= 1 for d in link_delay):
@@ -105,6 +138,7 @@ class Sitl:
         self._lag_told = None            # (wall time, board us) of the last lag report
         self._clock_seen = (0, time.monotonic())
         self._resets: deque[tuple[str, int]] = deque()      # asked of the board's thread
+        self._commands: deque[tuple[str, Future]] = deque()  # typed commands, for the board's thread
 
     def start(self) -> "Sitl":
         """run() in a daemon thread; stop() ends it."""
@@ -122,6 +156,146 @@ class Sitl:
         watchdog or a fault would: the port stays open, the heartbeats start again from zero."""
         reset_cause_value(cause)               # (a bad name raises here, not in the board's thread)
         self._resets.append((cause, last_fault))
+
+    def submit(self, text: str) -> Future:
+        """A command (COMMANDS) for the running board: handled between two slices of its run;
+        the Future's result is what it did (cancelled if the SITL stops first)."""
+        done = Future()
+        if self._stop.is_set():
+            done.cancel()
+        else:
+            self._commands.append((text, done))
+        return done
+
+    def read_commands(self, stream=None, write=None) -> threading.Thread:
+        """Commands read line by line from `stream` (default stdin, prompting if a terminal) on
+        a thread of their own, each handled by the running board and what it did written
+        (default stdout). At the end of the stream the thread ends; the SITL runs on."""
+        stream = sys.stdin if stream is None else stream
+        write = write or (lambda text: print(text, flush=True))
+
+        def serve():
+            prompt = stream.isatty()
+            while True:
+                if prompt:
+                    print("sitl> ", end="", flush=True)
+                try:
+                    line = stream.readline()
+                except (OSError, ValueError):       # no usable stdin: the board runs on
+                    return
+                if not line:
+                    return
+                if line.strip():
+                    try:
+                        write(self.submit(line).result())
+                    except CancelledError:
+                        return
+        thread = threading.Thread(target=serve, daemon=True, name="sitl-commands")
+        if stream is not None:
+            thread.start()
+        return thread
+
+    def handle(self, text: str) -> str:
+        """Do one command (COMMANDS) to the board, now: call it between runs of the board (the
+        running SITL does, for submit()). Returns what it did, or why not, in one line."""
+        words = text.lower().split()
+        if words[:1] == ["turn"] and len(words) == 3 and words[1] in AXES and words[2] in ("up", "down"):
+            return self._turn_face(words[1], words[2] == "up")
+        if words == ["level"]:
+            return self._turn_to(np.array([0.0, 0.0, 1.0]), "the board is level (its z up)")
+        if words[:2] == ["move", "joint"] and len(words) == 4:
+            return self._move_joint(words[2], words[3])
+        if words == ["hold", "zero"]:
+            return self._hold_zero()
+        if words == ["where"]:
+            return self._where()
+        if words in (["help"], ["?"]):
+            return COMMANDS
+        return f"unknown command {text.strip()!r}: one of turn X|Y|Z up|down, level, move joint J DEG, " \
+               "hold zero, where, help"
+
+    def _orientation(self) -> np.ndarray:
+        """The board's orientation now (base axes to the world's; yaw left out)."""
+        motion, t = self.board.motion, self.board.time
+        if hasattr(motion, "orientation"):
+            return motion.orientation(t)
+        roll, pitch = motion.attitude(t)
+        return rotation.from_vector((0.0, pitch, 0.0)) @ rotation.from_vector((roll, 0.0, 0.0))
+
+    def _turn_face(self, axis: str, up: bool) -> str:
+        direction = self.board.imu_axis(AXES[axis]) * (1.0 if up else -1.0)
+        way = "up" if up else "down"
+        return self._turn_to(direction, f"the IMU's {axis.upper()} axis points {way}", off_axis=True)
+
+    def _turn_to(self, target: np.ndarray, what: str, off_axis: bool = False) -> str:
+        """The board turned by hand, the shortest way, until `target` (base axes) points up
+        (off_axis: about an axis HAND_OFF_AXIS off that way's, so that it ends a few degrees off)."""
+        start = self._orientation()
+        up = start[2]                                  # the world's up in base axes
+        axis = np.cross(target, up)
+        angle = math.atan2(np.linalg.norm(axis), float(target @ up))
+        if angle < (3 * HAND_OFF_AXIS if off_axis else 1e-6):
+            return f"already so: {what}"
+        if np.linalg.norm(axis) < 1e-9:                # upside down
+            # flipped over the next axis (Z over X, X over Y, Y over Z): the six faces in the
+            # IMU calibration's order then turn the board over each of its axes
+            other = np.eye(3)[(int(np.argmax(np.abs(target))) + 1) % 3]
+            axis = other - (other @ target) * target
+        axis = axis / np.linalg.norm(axis)
+        if off_axis:    # a hand's turn is never about the exact axis
+            aside = np.cross(axis, target)
+            axis = math.cos(HAND_OFF_AXIS) * axis + math.sin(HAND_OFF_AXIS) * aside / np.linalg.norm(aside)
+        self.board.motion = Turning(start, axis * angle, self.board.time, TURN_S)
+        return f"turning the board by hand, {math.degrees(angle):.0f} deg over {TURN_S:g} s, until {what}"
+
+    def _move_joint(self, joint: str, degrees: str) -> str:
+        try:
+            j, deg = int(joint), float(degrees)
+        except ValueError:
+            return f"move joint {joint} {degrees}: use move joint J DEG, J 1 to 3, DEG in degrees"
+        if not 1 <= j <= len(self.board.joint_servos) or not math.isfinite(deg):
+            return f"move joint {joint} {degrees}: use move joint J DEG, J 1 to 3, DEG in degrees"
+        servo = self.board.joint_servos[j - 1]
+        if servo is None:
+            return f"joint {j} has no servo"
+        if servo.torque_on:
+            return f"joint {j} holds its position: the torque is on"
+        units = self.board.truth_units(j - 1, math.radians(deg))
+        if not 0 <= units <= 1023:
+            return f"joint {j} at {deg:g} deg is past its servo's travel (units {units:.0f}, 0 to 1023)"
+        servo.turn_by_hand(units)
+        return f"joint {j} turned by hand to {deg:g} deg (servo {servo.id} at {units:.1f} units)"
+
+    def _hold_zero(self) -> str:
+        held, holding = [], []
+        for j, servo in enumerate(self.board.joint_servos, 1):
+            if servo is None:
+                continue
+            if servo.torque_on:
+                holding.append(j)
+            else:
+                units = self.board.truth_units(j - 1, 0.0)
+                servo.turn_by_hand(units)
+                held.append(f"{j} ({units:g} units)")
+        said = [f"joints {', '.join(held)} held at 0 deg"] if held else []
+        said += [f"joint {j} holds its position: the torque is on" for j in holding]
+        return "; ".join(said) or "no joint has a servo"
+
+    def _where(self) -> str:
+        joints = ", ".join(degrees_text(q) for q in self.board.true_joints())
+        roll, pitch = (degrees_text(a) for a in self.board.motion.attitude(self.board.time))
+        states = []
+        for j, servo in enumerate(self.board.joint_servos, 1):
+            if servo is None:
+                states.append(f"{j} missing")
+            elif not servo.powered:
+                states.append(f"{j} unpowered")
+            elif servo.torque_on:
+                load = servo.present_load()
+                states.append(f"{j} holding, load {load & 0x3FF} {'CW' if load & 0x400 else 'CCW'}")
+            else:
+                states.append(f"{j} limp")
+        return f"joints {joints} deg (true); board roll {roll}, pitch {pitch} deg; servos: {', '.join(states)}"
 
     def clock(self) -> float:
         """The board's simulated time (s), for a link client in this process to keep
@@ -182,6 +356,12 @@ class Sitl:
                 target_us = round((time.monotonic() - start) * self.speed * 1e6)
                 while self._resets:
                     self.board.reset(*self._resets.popleft())
+                while self._commands:
+                    text, done = self._commands.popleft()
+                    try:
+                        done.set_result(self.handle(text))
+                    except Exception as exc:   # a command's slip must not stop the board
+                        done.set_result(f"{text.strip()!r} failed: {exc}")
                 self._read_input()
                 end_us = min(target_us, self.board.now_us + round(SLICE_S * 1e6))
                 self._run_until_us(end_us)
@@ -190,6 +370,8 @@ class Sitl:
                 if self.board.now_us >= target_us:
                     time.sleep(0.0005)   # ahead of the wall clock: wait for it
         finally:
+            while self._commands:
+                self._commands.popleft()[1].cancel()
             self.close()
 
     def _watch_lag(self, behind_us: int) -> None:
@@ -294,16 +476,46 @@ def link_delay_of(text: str) -> tuple[float, float]:
     return values[0] / 1000, values[-1] / 1000
 
 
+def integers_of(text: str, what: str, allowed: set[int] | range, described: str) -> tuple[int, int, int]:
+    """Three comma-separated integers, each in `allowed` (`described` says which)."""
+    try:
+        values = tuple(int(v) for v in text.split(","))
+        if len(values) != 3 or not all(v in allowed for v in values):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"{what} {text!r}: use three of {described}, comma-separated") from None
+    return values
+
+
+def mounted_servos(model, zeros: tuple[int, ...] | None, directions: tuple[int, ...] | None):
+    """SimBoard's servo_truth from what was given, the rest as the model file says (None: all of it)."""
+    if zeros is None and directions is None:
+        return None
+    return (zeros or tuple(s.zero for s in model.servos), directions or tuple(s.direction for s in model.servos))
+
+
 def main(scenario: str | None, speed: float, imu: str = "white", seed: int = 0,
          imu_mounting: tuple[float, float, float] | None = None, servo_lag: float | None = None,
-         link_delay: tuple[float, float] = (0.0, 0.0), supply: float | None = None) -> int:
-    sitl = Sitl(scenario, speed=speed, sensor=Mpu6050Sensor(imu, seed=seed), imu_mounting_rpy_deg=imu_mounting,
-                servo_lag=servo_lag, link_delay=link_delay, supply=supply)
+         link_delay: tuple[float, float] = (0.0, 0.0), supply: float | None = None,
+         servo_zeros: tuple[int, int, int] | None = None, servo_directions: tuple[int, int, int] | None = None,
+         motors_on: bool = False, commands=None) -> int:
+    """`uavarm sitl`: the board served in real time, commands (COMMANDS) read from `commands`
+    (default stdin). Its scenarios are all on the bench: the IMU feels the propellers only
+    with motors_on (the `calibrated` and `datasheet` profiles' vibration)."""
+    model = config.load()
+    sensor = Mpu6050Sensor(imu, seed=seed, vibration_from=0.0 if motors_on else math.inf)
+    sitl = Sitl(scenario, speed=speed, model=model, sensor=sensor,
+                imu_mounting_rpy_deg=imu_mounting, servo_lag=servo_lag, link_delay=link_delay, supply=supply,
+                servo_truth=mounted_servos(model, servo_zeros, servo_directions))
     lag = sitl.board.model.servo_response_lag if servo_lag is None else servo_lag
     print(f"simulated board on {sitl.device} (scenario {scenario or 'level'}, speed {speed}x, IMU {imu} "
-          f"seed {seed}, servo lag {lag * 1000:g} ms, supply {sitl.board.bus.supply.volts:g} V, "
-          f"link delay {link_delay[0] * 1000:g} ms in, "
+          f"seed {seed}, motors {'on' if motors_on else 'off'}, servo lag {lag * 1000:g} ms, "
+          f"supply {sitl.board.bus.supply.volts:g} V, link delay {link_delay[0] * 1000:g} ms in, "
           f"{link_delay[1] * 1000:g} ms out); Ctrl-C stops", flush=True)
+    zeros, directions = sitl.board.servo_truth
+    print(f"servos mounted with zeros {', '.join(f'{z:g}' for z in zeros)} units, directions "
+          f"{', '.join(f'{d:+d}' for d in directions)}; type commands here (help lists them)", flush=True)
+    sitl.read_commands(commands)
     try:
         sitl.run()
     except KeyboardInterrupt:
