@@ -365,6 +365,24 @@ def test_moving_during_a_position_is_refused_and_the_model_left_as_it_was(model_
     assert capsys.readouterr().out.count("the board moved") == guide.TRIES - 1
 
 
+def test_a_position_the_board_was_already_in_is_asked_again_at_once(model_copy, capsys):
+    """A hand that never turns the board (or turns it back to a face already taken): position 2
+    is asked again and refused at once, not after all six positions."""
+    before = model_copy.read_bytes()
+    asked = []
+    with sitl_link(sensor=sensor()) as (s, arm):
+        flat = turning(s, [(0.0, 0.0)] * 10)
+
+        def user(text):
+            asked.append(text)
+            flat(text)
+        with pytest.raises(CalibrationError, match="the board is as it was at position 1"):
+            calibrate.imu(arm, model_copy, user, lambda q: True, seconds=SECONDS)
+    assert len(asked) == 1 + guide.TRIES and all(text.startswith("Position 2/6") for text in asked[1:])
+    assert model_copy.read_bytes() == before
+    assert capsys.readouterr().out.count("the board is as it was at position 1") == guide.TRIES - 1
+
+
 def test_declining_the_diff_writes_nothing(model_copy):
     before = model_copy.read_bytes()
     with sitl_link(sensor=sensor()) as (s, arm):
@@ -523,13 +541,8 @@ def test_allow_unusual_is_refused_where_nothing_is_checked(model_copy, capsys):
     assert "--allow-unusual is for" in capsys.readouterr().err
 
 
-# ---------------------------------------------------------------- the firmware applies them
-
 # ---------------------------------------------------------------- servo zeros and directions
-
-TRUTH_ZERO = [516, 497, 505]       # the units each servo reads with its joint at 0 deg
-TRUTH_DIRECTION = [1, -1, 1]       # joint 2's servo mounted the other way round
-
+# (tests/test_calibrate_servos.py)
 
 def enabled_sitl(**board_options):
     """A SITL (board_options: the hardware as it is) and a link to it on its clock, the arm
@@ -542,46 +555,6 @@ def enabled_sitl(**board_options):
     while arm.next_heartbeat()["state"] != parked:
         assert s.clock() < end, "the arm did not park"
     return s, arm
-
-
-def test_servo_calibration_finds_each_zero_and_direction(model_copy):
-    s, arm = enabled_sitl()
-    shafts = s.board.bus.servos
-
-    def hold_at_zero(text):
-        for servo, units in zip(shafts, TRUTH_ZERO):
-            servo.turn_by_hand(units)
-        wait_simulated(s, 0.2)
-
-    def user(question):
-        if question.startswith("Did joint"):
-            j = int(question.split()[2]) - 1
-            end = s.clock() + 10.0
-            while abs(shafts[j].position - TRUTH_ZERO[j]) < guide.JOG_UNITS / 2 and s.clock() < end:
-                time.sleep(0.01)                      # (polls) the user answers once the joint has moved
-            return (shafts[j].position - TRUTH_ZERO[j]) * TRUTH_DIRECTION[j] > 0   # what the user sees
-        return True
-    try:
-        assert calibrate.servos(arm, model_copy, hold_at_zero, user, seconds=SECONDS)
-    finally:
-        arm.close()
-        s.stop()
-    m = config.load(model_copy)
-    assert [sv.zero for sv in m.servos] == TRUTH_ZERO
-    assert [sv.direction for sv in m.servos] == TRUTH_DIRECTION
-
-
-def test_servo_calibration_with_a_servo_unplugged_names_it(model_copy):
-    s, arm = enabled_sitl()
-    before = model_copy.read_bytes()
-    s.board.bus.servos = s.board.bus.servos[:2]                  # joint 3's cable pulled
-    try:
-        with pytest.raises(CalibrationError, match=r"no readings from the servo of joint\(s\) \[3\]"):
-            calibrate.servos(arm, model_copy, lambda text: wait_simulated(s, 0.2), lambda q: True, seconds=SECONDS)
-    finally:
-        arm.close()
-        s.stop()
-    assert model_copy.read_bytes() == before
 
 
 # ---------------------------------------------------------------- the closed loop afterwards

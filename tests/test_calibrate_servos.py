@@ -9,15 +9,20 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
 
 import oracles
+from conftest import wait_simulated
+from test_calibrate import SECONDS, enabled_sitl, run_sitl
 from uavarm.calibrate import servo_zero
 from uavarm.calibrate.fit import CalibrationError
+from uavarm.link import ArmLink
 from uavarm.model import config
+
+# the tests on the SITL: a simulated board in real time, a stage of their own (Makefile)
+realtime = pytest.mark.realtime
 
 
 # ---------------------------------------------------------------- the route, before anything moves
@@ -101,3 +106,189 @@ def test_load_words_read_as_the_control_table_says():
     assert servo_zero.load_sense(300) == (1, 300)
     assert servo_zero.load_sense(1024 + 300) == (-1, 300)
     assert servo_zero.load_sense(0) == (1, 0)
+
+
+# ---------------------------------------------------------------- on the SITL, a user at the arm
+
+TRUTH_ZERO = (516, 497, 505)       # the units each servo reads with its joint at 0 deg
+TRUTH_DIRECTION = (1, -1, 1)       # joint 2's servo mounted the other way round
+TRUTH = (TRUTH_ZERO, TRUTH_DIRECTION)
+NEAR_DEG = 10.0                    # a pose the user takes for the one asked about
+
+
+@pytest.fixture
+def lab_model(tmp_path):
+    """The model file as a lab has it before its first servo calibration: every zero at the
+    centre, joint 2's servo stated as mounted the other way round (as it is)."""
+    path = tmp_path / "manipulator.toml"
+    text = config.DEFAULT_MODEL.read_text()
+    joint2 = "[servo.theta2]\nid = 2\nzero = 512\ndirection = 1"
+    assert joint2 in text
+    path.write_text(text.replace(joint2, joint2[:-1] + "-1"))
+    return path
+
+
+class User:
+    """The simulated user at the arm. At the zero pose, holds each limp joint at its true angle
+    off_deg (0: exactly); answers each jog question from what the shaft really did (joint
+    `wrong` the other way round); and each verification question by comparing the arm's true
+    pose with the one asked about (within NEAR_DEG), or yes to everything if careless."""
+
+    def __init__(self, sitl, model, off_deg=(0.0, 0.0, 0.0), wrong=None, careless=False):
+        self.s, self.m, self.off, self.wrong, self.careless = sitl, model, off_deg, wrong, careless
+        self.said: list[str] = []
+
+    def true_deg(self):
+        return np.degrees(self.s.board.true_joints())
+
+    def ask(self, text):
+        self.said.append(text)
+        if text.startswith("Hold the arm hanging"):
+            for j, deg in enumerate(self.off, 1):
+                assert "turned by hand" in self.s.submit(f"move joint {j} {deg}").result(timeout=60)
+        wait_simulated(self.s, 0.2)
+
+    def confirm(self, question):
+        self.said.append(question)
+        if question.startswith("Did joint"):
+            j = int(question.split()[2]) - 1                   # jogged from where it was held
+            wait_simulated(self.s, 10.0, until=lambda: abs(self.true_deg()[j] - self.off[j]) > 3.0)
+            seen = self.true_deg()[j] > self.off[j]
+            return seen != (self.wrong == j + 1)
+        if question.startswith("Is the arm now"):
+            pose = next(p for p in servo_zero.VERIFY if servo_zero.sight(self.m, p) in question)
+            return self.careless or bool(np.all(np.abs(self.true_deg() - pose.q_deg) < NEAR_DEG))
+        return True                    # write it; and write an unusual one all the same
+
+
+def bench(**options):
+    """A SITL whose servos are mounted as TRUTH, the arm disabled (as after power-up), every
+    shaft position recorded; and a link to it."""
+    s = run_sitl(servo_truth=TRUTH, **options)
+    s.board.shaft_trace = []
+    return s, ArmLink(s.device, clock=s.clock)
+
+
+def least_clearance(s) -> float:
+    """The least clearance (mm, plain geometry) of the arm's true poses while powered."""
+    rows = np.array([r[2:5] for r in s.board.shaft_trace if r[1]], dtype=float)
+    zero, direction = (np.array(v, float) for v in TRUTH)
+    q = direction * (rows - zero) * math.radians(300.0) / 1023.0
+    return float(oracles.clearance_mm(config.load(), q).min())
+
+
+@realtime
+def test_a_right_calibration_goes_through_with_the_verification_move(lab_model, capsys):
+    """From a disabled arm: enabled limp (nothing driven with the model's values), the zero
+    pose, three jogs, three verification poses, the write: the servos' true zeros and
+    directions, the supply off at the end, and no shaft ever in the body or a leg."""
+    s, arm = bench()
+    user = User(s, config.load(lab_model))
+    try:
+        assert servo_zero.servos(arm, lab_model, user.ask, user.confirm, seconds=SECONDS)
+        end = arm.next_heartbeat()
+    finally:
+        arm.close()
+        s.stop()
+    m = config.load(lab_model)
+    assert [sv.zero for sv in m.servos] == list(TRUTH_ZERO)
+    assert [sv.direction for sv in m.servos] == list(TRUTH_DIRECTION)
+    assert end["enabled"] == 0
+    # the steps of a calibration without the check, plus one question per verification pose
+    assert user.said == [servo_zero.ZERO_POSE, *servo_zero.DIRECTION_QUESTIONS,
+                         *[f"Is the arm now {servo_zero.sight(m, p)}?" for p in servo_zero.VERIFY],
+                         f"write these changes to {lab_model}?"]
+    out = capsys.readouterr().out
+    loads = [line.strip() for line in out.splitlines() if "holds against gravity the way direction" in line]
+    least = least_clearance(s)
+    with capsys.disabled():
+        print("\n" + "\n".join(loads) + f"\nleast clearance of the shafts: {least:.1f} mm")
+    assert len(loads) == 2, out
+    assert least > 0.0
+
+
+CASES = {
+    # a wrong keypress on joint 3's direction, and a user who then says yes to every pose
+    "joint 3's direction answered wrongly": (dict(wrong=3, careless=True), True,
+                                             r"servo holds the arm pushing .* direction of joint 2 or of joint 3 is wrong"),
+    # joint 2 held 25 deg off at the zero pose: its zero is 85 units from the file's
+    "joint 2 held 25 deg off": (dict(off_deg=(0.0, 25.0, 0.0)), False, r"servo\.theta2\.zero .*--allow-unusual"),
+    "joint 2 held 25 deg off, allowed": (dict(off_deg=(0.0, 25.0, 0.0)), True,
+                                         r"was not the upper arm still hanging .* take the zero pose again"),
+    # joint 2 held 25 deg the other way and answered the other way round, every pose said yes to
+    "joint 2 held -25 deg off and answered wrongly": (dict(off_deg=(0.0, -25.0, 0.0), wrong=2, careless=True), True,
+                                                      r"servo holds the arm pushing .* direction of joint 2 or of joint 3 is wrong"),
+    # both mistakes at once: stopped before the arm moves
+    "joint 2 held 25 deg off and joint 3 answered wrongly": (dict(off_deg=(0.0, 25.0, 0.0), wrong=3), False,
+                                                             r"servo\.theta2\.zero .*servo\.theta3\.direction"),
+}
+
+
+@realtime
+@pytest.mark.parametrize("case", list(CASES))
+def test_a_wrong_calibration_is_refused_before_anything_is_written(lab_model, case):
+    """Each refused with what to do, the file's bytes unchanged, the supply off at the end, and
+    no shaft ever in the body or a leg (the verification route is safe with the mistake)."""
+    user_options, allow, message = CASES[case]
+    before = lab_model.read_bytes()
+    s, arm = bench()
+    user = User(s, config.load(lab_model), **user_options)
+    try:
+        with pytest.raises(CalibrationError, match=message):
+            servo_zero.servos(arm, lab_model, user.ask, user.confirm, seconds=SECONDS, allow_unusual=allow)
+        end = arm.next_heartbeat()
+    finally:
+        arm.close()
+        s.stop()
+    assert lab_model.read_bytes() == before
+    assert end["enabled"] == 0
+    assert least_clearance(s) > 0.0
+
+
+@realtime
+def test_an_enabled_arm_goes_limp_only_once_the_user_holds_it(lab_model):
+    """A parked arm (the model's calibration right: no mounting given) is asked to be held
+    before its torque goes off."""
+    s, arm = enabled_sitl()
+    torque = {}
+
+    def ask(text):
+        torque.setdefault(text.split(":")[0].split(",")[0], [sv.torque_on for sv in s.board.bus.servos])
+        if text.startswith("Hold the arm hanging"):
+            assert "held at 0 deg" in s.submit("hold zero").result(timeout=60)
+        wait_simulated(s, 0.2)
+    try:
+        with pytest.raises(CalibrationError, match="unusual result"):      # joint 2: -1 in the file, +1 here
+            servo_zero.servos(arm, lab_model, ask, lambda q: True, seconds=SECONDS)
+    finally:
+        arm.close()
+        s.stop()
+    assert torque["Hold the arm with one hand"] == [True] * 3
+    assert torque["Hold the arm hanging straight down"] == [False] * 3
+
+
+@realtime
+def test_a_servo_unplugged_after_the_enable_is_named(lab_model):
+    s, arm = bench()
+    before = lab_model.read_bytes()
+    try:
+        arm.enable(limp=True)
+        s.board.bus.servos = s.board.bus.servos[:2]                  # joint 3's cable pulled
+        with pytest.raises(CalibrationError, match=r"no readings from the servo of joint\(s\) \[3\]"):
+            servo_zero.servos(arm, lab_model, lambda text: wait_simulated(s, 0.2), lambda q: True, seconds=SECONDS)
+    finally:
+        arm.close()
+        s.stop()
+    assert lab_model.read_bytes() == before
+
+
+@realtime
+def test_a_servo_unplugged_before_the_enable_is_said(lab_model):
+    s, arm = bench()
+    s.board.bus.servos = s.board.bus.servos[:2]
+    try:
+        with pytest.raises(CalibrationError, match=r"the servos did not all answer .*servo_config.*connected"):
+            servo_zero.servos(arm, lab_model, lambda text: wait_simulated(s, 0.2), lambda q: True, seconds=SECONDS)
+    finally:
+        arm.close()
+        s.stop()

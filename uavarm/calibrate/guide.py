@@ -14,6 +14,7 @@ and parks a limp or jogged arm once the link has been silent that long, so they 
 while the user acts; they park the arm when done."""
 from __future__ import annotations
 
+import math
 import threading
 import time
 from pathlib import Path
@@ -35,6 +36,20 @@ POSITIONS = (
     "on the opposite edge, the IMU's Y axis down",
 )
 TRIES = 3
+SAME_FACE_DEG = 45.0               # the six faces are 90 deg or more apart
+
+
+def _another_face(windows: list[Window]):
+    """A check for a new position: CalibrationError if the board is as at an earlier one (the
+    hand did not turn it, or turned it to a face already taken)."""
+    def check(w: Window) -> None:
+        for k, earlier in enumerate(windows, 1):
+            cos = np.dot(w.accel_g, earlier.accel_g) / (np.linalg.norm(w.accel_g) * np.linalg.norm(earlier.accel_g))
+            angle = math.degrees(math.acos(min(1.0, max(-1.0, float(cos)))))
+            if angle < SAME_FACE_DEG:
+                raise CalibrationError(f"the board is as it was at position {k} ({angle:.0f} deg from it): turn it "
+                                       "to this position's face")
+    return check
 
 
 def _ask_reading(arm, ask, text: str):
@@ -72,7 +87,9 @@ class _Record:
         self.frames: list[dict] = []
         self.spans: list[tuple[int, int]] = []
 
-    def position(self, arm, model, ask, text: str, seconds: float) -> Window:
+    def position(self, arm, model, ask, text: str, seconds: float, check=lambda w: None) -> Window:
+        """The still window the user holds after `text` (asked again, up to TRIES, while it is
+        not still or check(window) raises CalibrationError)."""
         for attempt in range(TRIES):
             _ask_reading(arm, ask, text)
             self.frames += _take_streamed(arm)           # the turn
@@ -81,6 +98,7 @@ class _Record:
             self.frames += _take_streamed(arm)
             try:
                 w = fit.window(self.frames[first:], model.accel_range_g, model.gyro_range_dps)
+                check(w)
             except CalibrationError as exc:
                 if attempt == TRIES - 1:
                     raise
@@ -122,7 +140,8 @@ def imu(arm, model_path: Path, ask, confirm, seconds: float = 2.0, allow_unusual
         windows = []
         for k, where in enumerate(POSITIONS, 1):
             w = record.position(arm, model, ask, f"Position {k}/{len(POSITIONS)}: the board {where}. "
-                                                 "Turn it there in one go, hold it still and press Enter.", seconds)
+                                                 "Turn it there in one go, hold it still and press Enter.", seconds,
+                                check=_another_face(windows))
             print(f"  {w.samples} samples, mean ({w.accel_g[0]:+.3f}, {w.accel_g[1]:+.3f}, {w.accel_g[2]:+.3f}) g")
             windows.append(w)
     finally:
@@ -299,7 +318,7 @@ def link(arm, model_path: Path, ask, confirm, seconds: float = LINK_SECONDS, ups
 
 
 # The calibrations whose results are checked against plausible's windows (--allow-unusual).
-UNUSUAL_CHECKED = ("imu", "mounting", "lag")
+UNUSUAL_CHECKED = ("imu", "mounting", "servos", "lag")
 
 
 def terminal_ask(text: str) -> None:

@@ -33,6 +33,7 @@ import numpy as np
 from . import model_edit, plausible
 from .fit import CalibrationError
 from .guide import TRIES, _ask_reading as ask_reading
+from ..link import CommandRefused
 from ..model import config, messages, servo as servo_map
 
 ZERO_POSE = ("Hold the arm hanging straight down, joint 1 turned so that raising joint 2 would swing it "
@@ -203,7 +204,11 @@ class _Arm:
         goals = _latest(self.arm, "goal", 0.1)
         for j, target in enumerate(self.units(q_deg)):
             if target != goals[j]:
-                self.arm.jog(j + 1, units=target - goals[j])
+                try:
+                    self.arm.jog(j + 1, units=target - goals[j])
+                except CommandRefused as exc:
+                    raise CalibrationError(f"the board refused the move to {list(q_deg)} deg ({exc}): the "
+                                           "calibration it was built with is far from this one") from None
                 end = self.arm.clock() + ARRIVE_S
                 while _state(self.arm.next_heartbeat()) != "jogged":
                     if self.arm.clock() > end:
@@ -238,16 +243,20 @@ def _check_load(arm, m: config.Model, pose: Pose, directions) -> None:
     j = pose.load_joint
     want = holding_sign(m, pose) * directions[j - 1]
     sense, size = load_sense(_latest(arm, "load")[j - 1])
+    if want == 0:
+        print(f"  at {list(pose.q_deg)} deg gravity hardly turns joint {j}: its direction is taken from your answer")
+        return
     if size < LOAD_MIN_UNITS:
         print(f"  joint {j}'s servo holds {size} units of load at {list(pose.q_deg)} deg: too little to tell its "
               "direction; taken from your answer")
         return
     if sense != want:
+        towards = lambda sense: "higher" if sense > 0 else "lower"
         raise CalibrationError(
-            f"joint {j}'s servo pushes {'up' if sense > 0 else 'down'} its units ({size} units of load) to hold "
-            f"{list(pose.q_deg)} deg, but with direction {directions[j - 1]:+d} it would push "
-            f"{'up' if want > 0 else 'down'} them: the direction of joint {j} (or of joint {5 - j}) is wrong. "
-            "Nothing written: run the calibration again and watch each jog")
+            f"at {list(pose.q_deg)} deg joint {j}'s servo holds the arm pushing towards {towards(sense)} units "
+            f"({size} units of load), but with direction {directions[j - 1]:+d} it would push towards "
+            f"{towards(want)} units: the direction of joint 2 or of joint 3 is wrong. Nothing written: run the "
+            "calibration again and watch each jog")
     print(f"  joint {j}'s servo holds against gravity the way direction {directions[j - 1]:+d} says "
           f"({size} units of load)")
 
@@ -267,20 +276,22 @@ def _departures(m: config.Model, zeros, directions) -> list[plausible.Departure]
     return out
 
 
-def _powered_limp(arm, ask) -> bool:
+def _powered_limp(arm, ask) -> None:
     """The servos powered with the torque off: a disabled arm is enabled limp (nothing driven);
-    an enabled one goes limp once the user holds it. True if this enabled it."""
+    an enabled one goes limp once the user holds it."""
     hb = arm.next_heartbeat()
     if hb["engaged"]:
         raise CalibrationError("the arm is engaged: disengage it first (`uavarm link PORT disengage`)")
     if not hb["enabled"]:
-        arm.enable(limp=True)
-        return True
-    if _state(hb) != "limp":
+        try:
+            arm.enable(limp=True)
+        except CommandRefused as exc:
+            raise CalibrationError(f"the servos did not all answer when powered ({exc}): is each connected, with "
+                                   "its id and baud set (`uavarm servos setup`)?") from None
+    elif _state(hb) != "limp":
         ask_reading(arm, ask, "Hold the arm with one hand: its torque goes off when you press Enter, "
                               "and it would drop.")
         arm.torque(False)
-    return False
 
 
 def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0, allow_unusual: bool = False) -> bool:
