@@ -34,7 +34,7 @@ from . import model_edit, plausible
 from .fit import CalibrationError
 from .guide import TRIES, _ask_reading as ask_reading
 from ..link import CommandRefused
-from ..model import config, messages, servo as servo_map
+from ..model import config, messages, pose_tolerance, servo as servo_map
 
 ZERO_POSE = ("Hold the arm hanging straight down, joint 1 turned so that raising joint 2 would swing it "
              "towards the drone's front (+x): every joint at 0 deg. Keep it there and press Enter.")
@@ -134,20 +134,17 @@ ROUTE = (ZERO, (0.0, 0.0, 90.0), ZERO, (0.0, 60.0, 0.0), ZERO, (0.0, 0.0, 25.0),
 
 def unsafe_on_route(m: config.Model, window_deg: float = ROUTE_SAFE_DEG) -> str | None:
     """Why the verification route is not clear of the body and legs with every zero off by up
-    to window_deg and any direction the wrong way round; None if it is."""
-    from ..sim.workspace import Predicates
-    pred = Predicates(m)
-    errors = np.radians(np.linspace(-window_deg, window_deg, 7))
-    ways = np.array([np.array(f) for f in itertools.product((1, -1), repeat=3)])        # (8, 3)
-    offsets = np.array(list(itertools.product(errors, repeat=3)))                        # (343, 3)
+    to window_deg and any direction the wrong way round; None if it is. Each path is taken a
+    degree at a time, each step's box of joint errors (window_deg and the half degree to the
+    next step) bounded by pose_tolerance's interval arithmetic: a conservative verdict."""
     for a, b in zip(ROUTE, ROUTE[1:]):
-        path = np.radians(np.linspace(a, b, int(max(abs(np.subtract(b, a)))) + 1))      # a degree apart
-        q = (path[:, None, None, :] * ways[None, :, None, :] + offsets[None, None, :, :]).reshape(-1, 3)
-        ok = pred.body(*q.T) & pred.legs(*q.T)
-        if not ok.all():
-            bad = np.degrees(q[np.argmin(ok)])
-            return (f"on the way from {list(a)} to {list(b)} deg a shaft could be at "
-                    f"{[round(float(v), 1) for v in bad]} deg, in the body or a leg")
+        for q in np.linspace(a, b, round(max(abs(np.subtract(b, a)))) + 1):
+            for ways in itertools.product((1, -1), repeat=3):
+                c = pose_tolerance.least(m, tuple(q * ways), window_deg + 0.5)
+                if not c.clear:
+                    return (f"on the way from {list(a)} to {list(b)} deg, at {[round(float(v), 1) for v in q]} deg "
+                            f"with the directions {ways} and the joints off by {list(c.offsets_deg)} deg, "
+                            f"{c.part} would be {-c.mm:.1f} mm past the {c.boundary}")
     return None
 
 
