@@ -213,7 +213,7 @@ def parser() -> argparse.ArgumentParser:
                      help="imu: accelerometer bias and scale (six still positions), the gyro's offset, "
                           "and its scale (the turns between them); mounting: the IMU's roll and pitch on the "
                           "base (drone standing level); servos: each servo's zero and direction (the arm held "
-                          "at its zero pose, then small jogs); "
+                          "at its zero pose, then small jogs), checked by a slow move through three poses; "
                           "lag: how far the servos lag their goal (a jog of each joint), and the lead time; "
                           "link: the link's fixed delay from this computer (pings), run on the drone's computer")
     cal.add_argument("port", help="serial device of the board (or the path `uavarm sitl` prints)")
@@ -226,8 +226,9 @@ def parser() -> argparse.ArgumentParser:
                           "what is measured (e.g. the mean of `rostopic delay` on the attitude topic; default 0)")
     cal.add_argument("--yes", action="store_true", help="write the result without asking")
     cal.add_argument("--allow-unusual", action="store_true",
-                     help="imu, mounting, lag: write a result beyond what a calibration usually gives (a mounting "
-                          "more than 10 deg from level, an accelerometer far from its last calibration, a servo lag "
+                     help="imu, mounting, servos, lag: go on with a result beyond what a calibration usually gives "
+                          "(a mounting more than 10 deg from level, an accelerometer far from its last calibration, a "
+                          "servo zero more than 15 deg from the model file's or a direction changed, a servo lag "
                           "outside 5-80 ms or a lead time moved more than 30 ms) after a second confirmation "
                           "(none with --yes)")
     st = sub.add_parser("sitl", help="run the firmware on a simulated board behind a pseudo-terminal")
