@@ -292,3 +292,11 @@ def test_a_servo_unplugged_before_the_enable_is_said(lab_model):
     finally:
         arm.close()
         s.stop()
+
+
+def test_the_command_line_will_not_answer_the_servo_calibrations_questions(tmp_path, capsys):
+    """--yes would answer every direction and verification question yes: refused before the
+    port is opened."""
+    from uavarm import cli
+    assert cli.main(["calibrate", "servos", "/dev/no-such-port", "--yes"]) == 2
+    assert "--yes is not for `uavarm calibrate servos`" in capsys.readouterr().err

@@ -224,7 +224,8 @@ def parser() -> argparse.ArgumentParser:
     cal.add_argument("--upstream-ms", type=NOT_NEGATIVE, default=None, metavar="MS",
                      help="link: how old the attitude's stamps are when they reach this computer, added to "
                           "what is measured (e.g. the mean of `rostopic delay` on the attitude topic; default 0)")
-    cal.add_argument("--yes", action="store_true", help="write the result without asking")
+    cal.add_argument("--yes", action="store_true",
+                     help="write the result without asking (not for servos: its questions are what you see)")
     cal.add_argument("--allow-unusual", action="store_true",
                      help="imu, mounting, servos, lag: go on with a result beyond what a calibration usually gives "
                           "(a mounting more than 10 deg from level, an accelerometer far from its last calibration, a "

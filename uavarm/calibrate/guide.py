@@ -337,6 +337,10 @@ def command(args) -> int:
     if args.upstream_ms is not None and args.what != "link":
         print(f"error: --upstream-ms is for `uavarm calibrate link` only, not {args.what}", file=sys.stderr)
         return 2
+    if args.yes and args.what == "servos":
+        print("error: --yes is not for `uavarm calibrate servos`: its questions are what you see the arm do",
+              file=sys.stderr)
+        return 2
     if args.allow_unusual and args.what not in UNUSUAL_CHECKED:
         print(f"error: --allow-unusual is for `uavarm calibrate {'|'.join(UNUSUAL_CHECKED)}` only, not {args.what}",
               file=sys.stderr)
