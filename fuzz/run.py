@@ -138,14 +138,17 @@ def build(name: str) -> Path:
         digest.update(str(path).encode() + b"\0" + path.read_bytes())
     exe = OUT / name
     stamp = OUT / f"{name}.sha256"
-    if exe.exists() and stamp.exists() and stamp.read_text() == digest.hexdigest():
-        return exe
-    OUT.mkdir(parents=True, exist_ok=True)
-    cmd = [cc, *flags, *map(str, sources), "-lm", "-o", str(exe)]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise FuzzSetupError(f"{' '.join(cmd)}\n{proc.stderr}")
-    stamp.write_text(digest.hexdigest())
+    with cbuild.exclusive(OUT / f"{name}.lock"):    # parallel test processes build it once
+        if exe.exists() and stamp.exists() and stamp.read_text() == digest.hexdigest():
+            return exe
+        stamp.unlink(missing_ok=True)
+        tmp = OUT / f"{name}.tmp{os.getpid()}"
+        cmd = [cc, *flags, *map(str, sources), "-lm", "-o", str(tmp)]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise FuzzSetupError(f"{' '.join(cmd)}\n{proc.stderr}")
+        tmp.replace(exe)      # atomic: a harness already running keeps its own file
+        stamp.write_text(digest.hexdigest())
     return exe
 
 

@@ -1,3 +1,4 @@
+import json
 import os
 import shutil
 import signal
@@ -24,6 +25,25 @@ def gen():
     """(ffi, lib) of the committed generated C, built with the strict flags."""
     from uavarm.build import generated
     return generated.default()
+
+
+def once_per_run(tmp_path_factory, name: str, make):
+    """make(folder) once per test run, whichever of its processes (pytest-xdist workers) asks
+    first; the others wait for it and get the same result (JSON) and folder. A module fixture
+    alone runs again in every worker that gets one of its module's tests (--dist worksteal
+    splits modules)."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent                  # the run's folder, above each worker's own
+    from uavarm.build.cbuild import exclusive
+    done = root / f"{name}.json"
+    with exclusive(root / f"{name}.lock"):
+        if not done.exists():
+            folder = root / name
+            shutil.rmtree(folder, ignore_errors=True)     # (what a failed attempt left)
+            folder.mkdir()
+            done.write_text(json.dumps(make(folder)))
+    return json.loads(done.read_text())
 
 
 def sympy_at_30_digits(exprs):

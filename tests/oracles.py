@@ -17,16 +17,25 @@ import numpy as np
 FK_TOL_MM = 2.0
 
 
+def _arm_xyz(m, q):
+    """The elbow's and the end effector's x, y, z (each of shape q.shape[:-1]): the arm's
+    plane direction h = (cos q1, -sin q1, 0) and straight down, one component at a time
+    (the same arithmetic as whole vectors, without their temporaries)."""
+    q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
+    hx, hy = np.cos(q1), -np.sin(q1)
+    s2, c2 = np.sin(q2), np.cos(q2)
+    s23, c23 = np.sin(q2 + q3), np.cos(q2 + q3)
+    elbow = (m.L2 * (s2 * hx), m.L2 * (s2 * hy), -m.L1 + m.L2 * -c2)
+    ee = (elbow[0] + m.L3 * (s23 * hx), elbow[1] + m.L3 * (s23 * hy), elbow[2] + m.L3 * -c23)
+    return elbow, ee
+
+
 def arm_points(m, q):
     """(shoulder, elbow, end effector) as numpy arrays, for q of shape (..., 3)."""
     q = np.asarray(q, dtype=np.float64)
-    q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2]
-    h = np.stack([np.cos(q1), -np.sin(q1), np.zeros_like(q1)], axis=-1)
-    down = np.array([0.0, 0.0, -1.0])
-    shoulder = np.broadcast_to(m.L1 * down, h.shape)
-    elbow = shoulder + m.L2 * (np.sin(q2)[..., None] * h + np.cos(q2)[..., None] * down)
-    ee = elbow + m.L3 * (np.sin(q2 + q3)[..., None] * h + np.cos(q2 + q3)[..., None] * down)
-    return shoulder, elbow, ee
+    elbow, ee = _arm_xyz(m, q)
+    shoulder = np.broadcast_to(m.L1 * np.array([0.0, 0.0, -1.0]), q.shape)
+    return shoulder, np.stack(elbow, axis=-1), np.stack(ee, axis=-1)
 
 
 def wrap(a):
@@ -69,31 +78,37 @@ def check_pose(m, q, margin=0.0):
     decision boundary, so a float32 implementation may legitimately decide either way.
     """
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-    _, elbow, ee = arm_points(m, q)
+    elbow, ee = _arm_xyz(m, q)
     status = np.zeros(len(q), dtype=int)
+
+    in_limits = np.ones(len(q), dtype=bool)
     clear = np.ones(len(q), dtype=bool)
+    for j, lim in enumerate(m.limits):         # (a joint at a time: contiguous columns)
+        qj, lo, hi = np.ascontiguousarray(q[:, j]), math.radians(lim.min_deg), math.radians(lim.max_deg)
+        in_limits &= (qj >= lo) & (qj <= hi)
+        clear &= np.minimum(np.abs(qj - lo), np.abs(qj - hi)) > margin
 
-    lo = np.radians([l.min_deg for l in m.limits])
-    hi = np.radians([l.max_deg for l in m.limits])
-    in_limits = np.all((q >= lo) & (q <= hi), axis=1)
-    clear &= np.all(np.minimum(np.abs(q - lo), np.abs(q - hi)) > margin, axis=1)
-
-    below = (ee[:, 2] < m.body_z) & (elbow[:, 2] < m.body_z)
-    for zz in (ee[:, 2], elbow[:, 2]):
-        clear &= np.where(in_limits, np.abs(zz - m.body_z) > margin, True)
+    below = (ee[2] < m.body_z) & (elbow[2] < m.body_z)
+    # (each quantity is judged only where it decides: elsewhere it leaves `clear` as it is)
+    out_of_limits = ~in_limits
+    for zz in (ee[2], elbow[2]):
+        clear &= out_of_limits | (np.abs(zz - m.body_z) > margin)
 
     # the arm's vertical plane near a leg (legs 180 deg apart block the same plane)
     hw = math.radians(m.leg_half_width)
     near = np.zeros(len(q), dtype=bool)
+    not_below = out_of_limits | ~below
+    q1 = np.ascontiguousarray(q[:, 0])
     for a in np.radians(m.leg_angles):
-        d = np.mod(q[:, 0] - a, math.pi)
+        d = np.mod(q1 - a, math.pi)
         dist = np.minimum(d, math.pi - d)
         near |= dist <= hw
-        clear &= np.where(in_limits & below, np.abs(dist - hw) > margin, True)
-    ee_rho, el_rho = np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1])
+        clear &= not_below | (np.abs(dist - hw) > margin)
+    ee_rho, el_rho = np.hypot(ee[0], ee[1]), np.hypot(elbow[0], elbow[1])
     hits_leg = near & ((ee_rho >= m.leg_distance) | (el_rho >= m.leg_distance))
+    not_near = not_below | ~near
     for rr in (ee_rho, el_rho):
-        clear &= np.where(in_limits & below & near, np.abs(rr - m.leg_distance) > margin, True)
+        clear &= not_near | (np.abs(rr - m.leg_distance) > margin)
 
     status[~in_limits] = 2
     status[in_limits & ~below] = 3
@@ -160,16 +175,16 @@ def clear_by(m, q, mm, rad):
     """Poses q (N, 3) at least `mm` below the body plane and inside the leg distance wherever
     joint 1 is within leg_half_width + `rad` of a leg, and `rad` inside every limit."""
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-    _, elbow, ee = arm_points(m, q)
+    elbow, ee = _arm_xyz(m, q)
     lo = np.radians([l.min_deg for l in m.limits])
     hi = np.radians([l.max_deg for l in m.limits])
     ok = np.all((q > lo + rad) & (q < hi - rad), axis=1)
-    ok &= (ee[:, 2] < m.body_z - mm) & (elbow[:, 2] < m.body_z - mm)
+    ok &= (ee[2] < m.body_z - mm) & (elbow[2] < m.body_z - mm)
     near = np.zeros(len(q), dtype=bool)
     for leg in np.radians(m.leg_angles):
         d = np.mod(q[:, 0] - leg, math.pi)
         near |= np.minimum(d, math.pi - d) <= math.radians(m.leg_half_width) + rad
-    reach = np.maximum(np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1]))
+    reach = np.maximum(np.hypot(ee[0], ee[1]), np.hypot(elbow[0], elbow[1]))
     return ok & (~near | (reach < m.leg_distance - mm))
 
 
@@ -178,11 +193,12 @@ def clearance_mm(m, q):
     leg's half width, of the leg distance: the least of the elbow's and the end effector's
     distances to those boundaries (negative: inside)."""
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
-    _, elbow, ee = arm_points(m, q)
-    clear = np.minimum(m.body_z - elbow[:, 2], m.body_z - ee[:, 2])
+    elbow, ee = _arm_xyz(m, q)
+    clear = np.minimum(m.body_z - elbow[2], m.body_z - ee[2])
     near = np.zeros(len(q), dtype=bool)
+    q1 = np.ascontiguousarray(q[:, 0])
     for a in np.radians(m.leg_angles):
-        d = np.mod(q[:, 0] - a, math.pi)
+        d = np.mod(q1 - a, math.pi)
         near |= np.minimum(d, math.pi - d) <= math.radians(m.leg_half_width)
-    reach = np.maximum(np.hypot(ee[:, 0], ee[:, 1]), np.hypot(elbow[:, 0], elbow[:, 1]))
+    reach = np.maximum(np.hypot(ee[0], ee[1]), np.hypot(elbow[0], elbow[1]))
     return np.where(near, np.minimum(clear, m.leg_distance - reach), clear)

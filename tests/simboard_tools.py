@@ -271,12 +271,15 @@ def level_ik_ok(p) -> bool:
     return bool((status == 0).any())
 
 
-def level_ik_clear(p, mm: float = 0.5, deg: float = 0.5) -> bool:
-    """A point the arm reaches from a level base in a pose `mm` clear of the body plane and
-    the leg distance, `deg` clear of the leg sectors and the joint limits (plain geometry):
-    well inside the workspace, whatever margin the firmware keeps from its edges."""
+def level_ik_clear(p, mm: float = 0.5, deg: float = 0.5):
+    """Points (N, 3) the arm reaches from a level base in a pose `mm` clear of the body plane
+    and the leg distance, `deg` clear of the leg sectors and the joint limits (plain geometry):
+    well inside the workspace, whatever margin the firmware keeps from its edges. A mask, or
+    a bool for one point."""
     q, exists = oracles.textbook_ik(MODEL, np.asarray(p, dtype=float))
-    return bool(exists[0].any() and oracles.clear_by(MODEL, q[0][exists[0]], mm, math.radians(deg)).any())
+    ok = np.zeros_like(exists)
+    ok[exists] = oracles.clear_by(MODEL, q[exists], mm, math.radians(deg))
+    return bool(ok[0].any()) if np.ndim(p) == 1 else ok.any(axis=1)
 
 
 # ---------------------------------------------------------------- boards

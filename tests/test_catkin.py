@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, SYSTEM_ENV, catkin_workspace, free_port, stop_group
+from conftest import ROOT, SYSTEM_ENV, catkin_workspace, free_port, once_per_run, stop_group
 from uavarm.sim.sitl import Sitl
 
 pytestmark = pytest.mark.realtime   # a simulated board in real time: a stage of its own (Makefile)
@@ -28,7 +28,7 @@ CLEAN_ENV = SYSTEM_ENV
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
-    return catkin_workspace(tmp_path_factory.mktemp("catkin_ws"))
+    return Path(once_per_run(tmp_path_factory, "catkin_ws", lambda folder: str(catkin_workspace(folder))))
 
 
 def test_catkin_builds_the_messages_and_services_for_python_and_cpp(workspace):

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pytest
 
-from conftest import ROOT, require_arm_toolchain
+from conftest import ROOT, once_per_run, require_arm_toolchain
 from hal_stubs import weak_stubs
 from test_stm32_project import cproject_symbols, ioc as ioc_of
 from uavarm.build import cbuild, firmware
@@ -337,16 +337,19 @@ def test_cfg0_closed_runs_the_servo_set_up_bridge_instead_of_the_arm(tmp_path):
 @pytest.fixture(scope="module")
 def other_model_tree(tmp_path_factory):
     """The board project and generated code of a model with another servo baud and tick,
-    after `make codegen`: (firmware folder, generated folder, model)."""
-    tmp = tmp_path_factory.mktemp("other_model")
-    text = config.DEFAULT_MODEL.read_text()
-    text = re.sub(r"(?m)^baud = \d+", "baud = 1000000", text)
-    text = re.sub(r"(?m)^sample_rate = [\d.]+", "sample_rate = 200.0", text)
-    (tmp / "manipulator.toml").write_text(text)
+    after `make codegen`: (firmware folder, generated folder, model). Made once per test run
+    (the tests copy the folders before changing them)."""
+    def make(tmp):
+        text = config.DEFAULT_MODEL.read_text()
+        text = re.sub(r"(?m)^baud = \d+", "baud = 1000000", text)
+        text = re.sub(r"(?m)^sample_rate = [\d.]+", "sample_rate = 200.0", text)
+        (tmp / "manipulator.toml").write_text(text)
+        shutil.copytree(FW, tmp / "firmware_stm32", ignore=shutil.ignore_patterns("build", "Debug", "Release"))
+        assert generate.main(["--model", str(tmp / "manipulator.toml"), "--out", str(tmp / "generated"),
+                              "--board", str(tmp / "firmware_stm32")]) == 0
+        return str(tmp)
+    tmp = Path(once_per_run(tmp_path_factory, "other_model", make))
     fw = tmp / "firmware_stm32"
-    shutil.copytree(FW, fw, ignore=shutil.ignore_patterns("build", "Debug", "Release"))
-    assert generate.main(["--model", str(tmp / "manipulator.toml"), "--out", str(tmp / "generated"),
-                          "--board", str(fw)]) == 0
     m = config.load(tmp / "manipulator.toml")
     assert (m.servo_baud, m.sample_rate) != (config.load().servo_baud, config.load().sample_rate)
     return fw, tmp / "generated", m

@@ -3,11 +3,13 @@ import dataclasses
 import math
 import re
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import oracles
+from conftest import once_per_run
 from uavarm.codegen import generate
 from uavarm.model import config, pose_tolerance
 
@@ -381,13 +383,15 @@ def params(request, tmp_path_factory):
         path = config.DEFAULT_MODEL
         text = (config.DEFAULT_MODEL.parents[1] / "generated" / "model_params.h").read_text()
     else:
-        model_text = BASE
-        for old, new in PARAMS_VARIANT.items():
-            assert old in model_text, old
-            model_text = model_text.replace(old, new, 1)
-        path = tmp_path_factory.mktemp("params") / "arm.toml"
-        path.write_text(model_text)
-        text = generate.render(path)["model_params.h"]
+        def make(folder):        # (rendered once per test run: seconds of SymPy)
+            model_text = BASE
+            for old, new in PARAMS_VARIANT.items():
+                assert old in model_text, old
+                model_text = model_text.replace(old, new, 1)
+            (folder / "arm.toml").write_text(model_text)
+            return str(folder / "arm.toml"), generate.render(folder / "arm.toml")["model_params.h"]
+        path, text = once_per_run(tmp_path_factory, "params_variant", make)
+        path = Path(path)
     return tomllib.loads(path.read_text()), _defines(text)
 
 

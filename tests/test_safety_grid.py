@@ -188,7 +188,7 @@ def test_from_park_every_reachable_target_gets_a_route(harness):
     m = arm_spec.spec()
     targets, _ = grid(m)
     targets = targets[::7]
-    reachable = targets[[simboard_tools.level_ik_clear(p) for p in targets]]
+    reachable = targets[simboard_tools.level_ik_clear(targets)]
     level = np.zeros((1, 2))
     out = Out(ffi, len(reachable) * 120 + 1, len(reachable) * 1200 + 1)
     counts = [run_grid(harness, start, reachable, level, 60, PHYSICS[1], out)[3] for start in start_poses(m)]
@@ -196,8 +196,9 @@ def test_from_park_every_reachable_target_gets_a_route(harness):
     assert sum(counts) == 0
 
 
-def model_solutions(m, p_base, q_now):
-    """The SymPy model's IK (lambdified, float64) with its checks and nearest-valid selection."""
+def model_ik(m):
+    """The SymPy model's IK (lambdified once, float64) with its checks and nearest-valid
+    selection: a function of (targets in the base frame, the current joints)."""
     ikm = kinematics.ik(m)
     xyz = kinematics.TARGET_SYMBOLS
     exprs = [ikm.disc >= 0]
@@ -205,17 +206,20 @@ def model_solutions(m, p_base, q_now):
         exprs += list(cand.q) + [kinematics.joint_limits_ok(m, cand.q), collision.body_clear(m, cand.geometry),
                                  collision.legs_clear(m, cand.geometry)]
     f = sp.lambdify(xyz, exprs, modules="numpy")
-    out = f(p_base[:, 0], p_base[:, 1], p_base[:, 2])
-    reach = np.broadcast_to(out[0], len(p_base))
-    best = np.full((len(p_base), 3), np.nan)
-    best_d = np.full(len(p_base), np.inf)
-    for k in range(4):
-        q = np.stack([np.broadcast_to(v, len(p_base)) for v in out[1 + 6 * k:4 + 6 * k]], axis=1).astype(float)
-        ok = reach & np.all([np.broadcast_to(v, len(p_base)) for v in out[4 + 6 * k:7 + 6 * k]], axis=0)
-        d = np.sum((q - q_now) ** 2, axis=1)
-        take = ok & (d < best_d)
-        best[take], best_d[take] = q[take], d[take]
-    return best
+
+    def solutions(p_base, q_now):
+        out = f(p_base[:, 0], p_base[:, 1], p_base[:, 2])
+        reach = np.broadcast_to(out[0], len(p_base))
+        best = np.full((len(p_base), 3), np.nan)
+        best_d = np.full(len(p_base), np.inf)
+        for k in range(4):
+            q = np.stack([np.broadcast_to(v, len(p_base)) for v in out[1 + 6 * k:4 + 6 * k]], axis=1).astype(float)
+            ok = reach & np.all([np.broadcast_to(v, len(p_base)) for v in out[4 + 6 * k:7 + 6 * k]], axis=0)
+            d = np.sum((q - q_now) ** 2, axis=1)
+            take = ok & (d < best_d)
+            best[take], best_d[take] = q[take], d[take]
+        return best
+    return solutions
 
 
 def test_model_never_selects_an_unsafe_pose():
@@ -224,11 +228,12 @@ def test_model_never_selects_an_unsafe_pose():
     targets = targets[::3]          # the lambdified model is slower; every third target
     park = np.radians(m.park_deg)
     chosen, near = 0, 0
+    model_solutions = model_ik(m)
     for roll, pitch in tilts:
         # p_base = (Ry(pitch) Rx(roll))^T (o + p_level) - o, from scipy (o: the mount offset)
         r_wb = Rotation.from_euler("YX", [pitch, roll]).as_matrix()
         o = np.array(m.mount_offset)
-        q = model_solutions(m, (targets + o) @ r_wb - o, park)
+        q = model_solutions((targets + o) @ r_wb - o, park)
         valid = ~np.isnan(q[:, 0])
         chosen += int(valid.sum())
         near += assert_safe(arm_spec.spec(), q[valid], f"model at roll {math.degrees(roll):.0f}, pitch {math.degrees(pitch):.0f}")

@@ -10,6 +10,8 @@ integer constants and prototypes only), so nothing is declared twice.
 """
 from __future__ import annotations
 
+import contextlib
+import fcntl
 import hashlib
 import os
 import re
@@ -46,6 +48,16 @@ def cdef_of(headers) -> str:
     return "\n".join(parts)
 
 
+@contextlib.contextmanager
+def exclusive(lock_path: Path):
+    """Holds an exclusive lock on lock_path (created if need be) while the block runs: the
+    processes of a parallel test run that need the same build wait for one to make it."""
+    lock_path.parent.mkdir(parents=True, exist_ok=True)
+    with open(lock_path, "w") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)
+        yield
+
+
 def build_shared(name: str, sources, include_dirs=(), extra_flags=(), cc: str | None = None) -> Path:
     """Compile `sources` into build/host/<name>-<hash>.so; reuse it while nothing changed."""
     cc = cc or os.environ.get("CC", "cc")
@@ -59,13 +71,15 @@ def build_shared(name: str, sources, include_dirs=(), extra_flags=(), cc: str | 
     out = BUILD_DIR / f"{name}-{digest.hexdigest()[:16]}.so"
     if out.exists():
         return out
-    BUILD_DIR.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_suffix(f".tmp{os.getpid()}")
-    cmd = [cc, *flags, "-shared", "-o", str(tmp), *map(str, sources), "-lm"]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        raise CBuildError(f"{' '.join(cmd)}\n{proc.stderr}")
-    tmp.replace(out)  # atomic: parallel test processes never load a half-written file
+    with exclusive(out.with_suffix(".lock")):   # parallel test processes compile it once
+        if out.exists():
+            return out
+        tmp = out.with_suffix(f".tmp{os.getpid()}")
+        cmd = [cc, *flags, "-shared", "-o", str(tmp), *map(str, sources), "-lm"]
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise CBuildError(f"{' '.join(cmd)}\n{proc.stderr}")
+        tmp.replace(out)  # atomic: a process that did not wait never loads a half-written file
     return out
 
 

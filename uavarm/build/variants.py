@@ -9,9 +9,7 @@ ignored by the loader, so a preset never silently measures the wrong firmware.
 """
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-import fcntl
 import hashlib
 import re
 import tomllib
@@ -153,14 +151,6 @@ class Variant:
     gen_dir: Path
 
 
-@contextlib.contextmanager
-def _exclusive(lock_path: Path):
-    lock_path.parent.mkdir(parents=True, exist_ok=True)
-    with open(lock_path, "w") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        yield
-
-
 def edited_text(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> str:
     text = Path(base).read_text()
     for key, value in changes.items():
@@ -207,7 +197,7 @@ def generate(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> t
     model_path = out / "manipulator.toml"
     gen_dir = out / "generated"
     stamp = out / "done"
-    with _exclusive(SIM_BUILD / f"{digest}.lock"):   # parallel runs build a variant once
+    with cbuild.exclusive(SIM_BUILD / f"{digest}.lock"):   # parallel runs build a variant once
         if not stamp.exists():
             out.mkdir(parents=True, exist_ok=True)
             model_path.write_text(text)
