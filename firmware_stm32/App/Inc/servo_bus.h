@@ -149,8 +149,8 @@ void sbus_power(sbus_t *bus, bool on);
  * Torque Limit MODEL_SERVO_BENCH_TORQUE_LIMIT, not the full one, until sbus_full_torque. */
 void sbus_power_limp(sbus_t *bus);
 /* The full Torque Limit from now on. Servos holding (RUNNING, not limp) are set up again with
- * it, holding where they stand, and no SYNC_WRITE goes before; limp ones get it with their
- * torque (sbus_limp(false)). */
+ * it, holding where they stand (refit), a SYNC_WRITE still queued dropped: command nothing
+ * until refit and refitting clear. Limp ones get it with their torque (sbus_limp(false)). */
 void sbus_full_torque(sbus_t *bus);
 /* Queue the next SYNC_WRITE (goal position and moving speed per servo, in units); ignored
  * unless RUNNING. A command not yet sent is replaced. */

@@ -463,8 +463,8 @@ static void configure(sbus_t *bus)
 
 /* A status reading of registers 32..43. Torque Limit back at Max Torque while running (the
  * full one and the bench's are both below it): the servo lost its RAM (a brown-out), its
- * torque is off and it goes limp; it is configured again at once (refit). (An overload or overheating Shutdown sets Torque Limit to 0: the
- * tracking watch's business, not a reset.) */
+ * torque is off and it goes limp; it is configured again at once (refit). (An overload or
+ * overheating Shutdown sets Torque Limit to 0: the tracking watch's business, not a reset.) */
 static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
 {
     const uint8_t *q = p + (AX_PRESENT_POSITION - SBUS_STATUS_ADDR);
