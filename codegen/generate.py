@@ -362,6 +362,7 @@ def params_context(m: config.Model):
         "park_speed": servo.speed_units(m.park_speed_rpm),
         "transit_speed": servo.speed_units(m.transit_speed_rpm),
         "working_speed": servo.speed_units(m.working_speed_rpm),
+        "bench_torque_limit": servo.bench_torque_limit(m),
         # how far the goals move per tick at each speed (the Moving Speed the register holds)
         "steps": {name: float32_literal(servo.rad_per_s(servo.speed_units(rpm)) / sp.nsimplify(m.sample_rate, rational=True))
                   for name, rpm in (("park", m.park_speed_rpm), ("transit", m.transit_speed_rpm),

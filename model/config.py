@@ -60,7 +60,7 @@ _KEYS_BY_TABLE = {
     "joints.theta1": "min max", "joints.theta2": "min max", "joints.theta3": "min max",
     "collision": "body_z leg_angles leg_half_width leg_distance",
     "servo": "baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
-             "working_speed_rpm speed_margin boot_time response_lag zero_tolerance_deg",
+             "working_speed_rpm speed_margin boot_time response_lag zero_tolerance_deg bench_torque_limit",
     "servo.theta1": "id zero direction", "servo.theta2": "id zero direction",
     "servo.theta3": "id zero direction",
     "park": "q",
@@ -135,6 +135,7 @@ class Model:
     servo_boot_time: float
     servo_response_lag: float      # s: how far the shaft lags its goal (the lead time covers it)
     servo_zero_tolerance_deg: float  # deg: how far a joint may be off after a careful calibration
+    servo_bench_torque_limit: float  # share of the maximum torque the servos get on the bench (enable 2)
     park_deg: tuple[float, float, float]
     link_silence_timeout: float
     heartbeat_period: float
@@ -172,6 +173,9 @@ SERVO_LAG_MAX_S = 0.15
 # A servo zero off by more than this is not a calibration (at the zero pose, by eye, a joint
 # 10 deg off is plain to see).
 ZERO_TOLERANCE_MAX_DEG = 10.0
+# Below this share of its maximum torque a servo on the bench may not hold the arm up (the
+# simulated arm held straight out level takes 7 %).
+BENCH_TORQUE_MIN = 0.1
 
 
 @dataclass(frozen=True)
@@ -394,6 +398,7 @@ def parse(raw: bytes, path: Path) -> Model:
                             if r.has("servo.response_lag") else SERVO_LAG_ASSUMED_S),
         servo_zero_tolerance_deg=r.number("servo.zero_tolerance_deg", nonnegative=True,
                                           hi=ZERO_TOLERANCE_MAX_DEG),
+        servo_bench_torque_limit=r.number("servo.bench_torque_limit", lo=BENCH_TORQUE_MIN, hi=1.0),
         park_deg=park,
         link_silence_timeout=r.number("link.silence_timeout", lo=2 / sample_rate, hi=3600.0),
         heartbeat_period=heartbeat,

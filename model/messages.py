@@ -43,12 +43,14 @@ MESSAGES = (
     Message("enable", 0x10, "to_arm", (("on", "u8"),),
             "1: servo power on, park and hold; 0: servo power off at once, engage cleared; "
             "2 (bench, for calibrating the servos' zeros and directions; refused while engaged or the drone "
-            "flying): servo power on and the servos configured as by 1, but the torque left off and no goal "
+            "flying): servo power on and the servos configured as by 1, but the torque left off, Torque Limit "
+            "servo.bench_torque_limit of the maximum (every move on the bench torque-limited) and no goal "
             "sent: the arm hangs limp where it is, its positions still read (the service commands and "
             "streams work). Until enable 1 or 0 the firmware never moves it by the model's calibration on "
             "its own: what would park it (the link silent, a drone_attitude or drone_velocity, engage 0 "
             "from a jogged or held pose, a servo found reset) turns the torque off instead, and engage is "
-            "refused (refusal bench). enable 1 then ends the bench: the torque on and the arm parks"),
+            "refused (refusal bench). enable 1 then ends the bench: the torque on, the full Torque Limit, and "
+            "the arm parks"),
     Message("engage", 0x11, "to_arm", (("on", "u8"),),
             "1 (only while enabled): go to the set position and stabilise; 0: park"),
     Message("set_position", 0x12, "to_arm", (("x", "f32"), ("y", "f32"), ("z", "f32")),

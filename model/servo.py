@@ -28,6 +28,19 @@ def speed_units(rpm: float) -> int:
     return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
 
 
+# Torque Limit's full scale (AX-12A e-manual: 1023 = the maximum torque), and what the firmware
+# configures outside the bench: one below, so that a servo whose RAM reset (its Torque Limit
+# back at the EEPROM's Max Torque, 1023) is told apart at its next status reading.
+TORQUE_LIMIT_MAX = 1023
+TORQUE_LIMIT_SET = TORQUE_LIMIT_MAX - 1
+
+
+def bench_torque_limit(m: Model) -> int:
+    """The Torque Limit register value on the bench: servo.bench_torque_limit of the maximum,
+    at most TORQUE_LIMIT_SET (a reset servo must still read differently)."""
+    return min(TORQUE_LIMIT_SET, round(m.servo_bench_torque_limit * TORQUE_LIMIT_MAX))
+
+
 def rad_per_s(speed: int) -> sp.Expr:
     """The joint speed (rad/s) a Moving Speed register value allows: speed x 0.111 rpm."""
     return speed * sp.nsimplify(RPM_PER_SPEED_UNIT, rational=True) * 2 * sp.pi / 60

@@ -5,9 +5,10 @@ model's zero 512 and direction +1 do not put the park pose: joint 1 at 300 units
 700, joint 3 at 512, as a servo mounted offset or reversed would.
 
 Oracles: the simulated servos' own shafts (their positions at every physics step) and
-registers, the SYNC_WRITEs on the bus (Protocol 1.0 framing), the AX-12A control table
-(Torque Enable at 24), a board enabled the ordinary way for the registers configured, and
-the message table's states, refusals and fault bits.
+registers, the SYNC_WRITEs and WRITEs on the bus (Protocol 1.0 framing, each WRITE rebuilt by
+the official DynamixelSDK), the AX-12A control table (Torque Enable at 24, Torque Limit at
+34..35, whose 1023 is the maximum torque), a board enabled the ordinary way for the registers
+configured, and the message table's states, refusals and fault bits.
 """
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ import sys
 import numpy as np
 import pytest
 
-from simboard_tools import FAULT, MODEL, PARK_UNITS, BusLog, make_board, run_until, shaft_units, sync_goal_speed
+from simboard_tools import (FAULT, MODEL, PARK_UNITS, BusLog, make_board, run_until, sdk_rebuild, shaft_units,
+                            sync_goal_speed)
 from uavarm.link import ArmLink, CommandRefused, messages, shell
 from uavarm.link.client import RestartWatch
 from uavarm.sim.sitl import Sitl
@@ -26,6 +28,9 @@ TRUTH = [300, 700, 512]          # where the shafts rest (units)
 TORQUE_ENABLE = 24
 HB_S = MODEL.heartbeat_period
 BENCH = 2                        # enable's value, and the heartbeat's enabled, for the bench
+TORQUE_LIMIT = 34
+FULL_LIMIT = 1022                # configured outside the bench: one below Max Torque (1023)
+BENCH_LIMIT = round(MODEL.servo_bench_torque_limit * 1023)   # the model's share of the maximum
 
 
 def state(board) -> str:
@@ -66,6 +71,25 @@ def bench(at=TRUTH):
 def torque_writes(log, since=-1.0):
     """(servo id, value) of every WRITE to Torque Enable after `since` (bus time)."""
     return [(p.id, p.params[1]) for p in log.tx if p.start >= since and p.inst == 0x03 and p.params[0] == TORQUE_ENABLE]
+
+
+def torque_limit_writes(log, since=-1.0):
+    """(bus time, servo id, value) of every WRITE that covers Torque Limit (34..35) after
+    `since`, each checked against the same WRITE built by the DynamixelSDK."""
+    out = []
+    for p in log.tx:
+        if p.start < since or p.inst != 0x03:
+            continue
+        addr, data = p.params[0], p.params[1:]
+        if addr <= TORQUE_LIMIT and TORQUE_LIMIT + 1 < addr + len(data):
+            assert p.raw == sdk_rebuild(p.raw), p.raw.hex(" ")
+            k = TORQUE_LIMIT - addr
+            out.append((p.start, p.id, data[k] | data[k + 1] << 8))
+    return out
+
+
+def torque_limits(board) -> list[int]:
+    return [s.register("torque_limit") for s in board.bus.servos]
 
 
 def shaft_span(board, since_us=0) -> np.ndarray:
@@ -117,10 +141,11 @@ def test_bench_enable_configures_the_servos_with_the_torque_off_and_moves_nothin
     plain.run(1.0)
     for s_bench, s_plain in zip(board.bus.servos, plain.bus.servos):
         for name in ("return_delay_time", "cw_angle_limit", "ccw_angle_limit", "temperature_limit",
-                     "min_voltage_limit", "max_voltage_limit", "max_torque", "status_return_level", "shutdown",
-                     "torque_limit"):
+                     "min_voltage_limit", "max_voltage_limit", "max_torque", "status_return_level", "shutdown"):
             assert s_bench.register(name) == s_plain.register(name), name
         assert s_bench.register("status_return_level") == 1, "written (the factory's is 2)"
+    # Torque Limit: the bench's share of the maximum torque, the ordinary enable's full one
+    assert torque_limits(board) == [BENCH_LIMIT] * 3 and torque_limits(plain) == [FULL_LIMIT] * 3
     assert [s.register("cw_angle_limit") for s in board.bus.servos] != [0, 0, 0], "the joint limits written"
     # the reading where the shafts are (the service stream works)
     board.send("stream", imu_every=0, servos=1)
@@ -198,6 +223,110 @@ def test_a_servo_reset_on_the_bench_leaves_the_arm_limp():
     assert hb["faults"] & FAULT["servo_reset"] and state(board) == "limp" and hb["enabled"] == BENCH
     limp_from(board, log, t0)
     assert shaft_span(board, start_us).max() <= 1.0 and shaft_units(board) == pytest.approx(held, abs=1.0)
+
+
+# ---------------------------------------------------------------- the bench's Torque Limit
+
+def test_the_bench_writes_its_torque_limit_to_every_servo_and_moves_with_it():
+    """enable 2 writes Torque Limit = servo.bench_torque_limit x 1023 to each servo, and
+    nothing else there; torque 1 and a jog set the servos up with it again."""
+    assert 0.1 <= MODEL.servo_bench_torque_limit < 1.0 and BENCH_LIMIT < 1023
+    board, log = bench()
+    writes = torque_limit_writes(log)
+    assert {i for _, i, _ in writes} == {s.id for s in MODEL.servos}
+    assert {v for _, _, v in writes} == {BENCH_LIMIT} and torque_limits(board) == [BENCH_LIMIT] * 3
+    t0 = board.bus.time
+    hold_then(board, log)
+    held = torque_limit_writes(log, t0)
+    assert {i for _, i, _ in held} == {s.id for s in MODEL.servos} and {v for _, _, v in held} == {BENCH_LIMIT}
+    assert torque_limits(board) == [BENCH_LIMIT] * 3
+    t1 = board.bus.time
+    board.send("jog", joint=1, mode=1, value=10.0)
+    keep_alive(board, 1.0)
+    assert state(board) == "jogged" and torque_limits(board) == [BENCH_LIMIT] * 3
+    assert log.syncs(t1) and all(v == BENCH_LIMIT for _, _, v in torque_limit_writes(log, t1))
+
+
+@pytest.mark.parametrize("held", [False, True], ids=["limp", "held"])
+def test_enable_1_from_the_bench_writes_the_full_torque_limit_before_the_first_goal(held):
+    board, log = bench()
+    if held:
+        hold_then(board, log)
+    assert torque_limits(board) == [BENCH_LIMIT] * 3
+    t0 = board.bus.time
+    held_goal = sync_goal_speed(log.syncs()[-1].raw)[0] if held else None
+    board.send("enable", on=1)
+    keep_alive(board, 6.0)
+    assert state(board) == "parked" and board.heartbeats[-1]["enabled"] == 1
+    assert shaft_units(board) == pytest.approx(PARK_UNITS, abs=2.0)
+    assert torque_limits(board) == [FULL_LIMIT] * 3
+    writes = torque_limit_writes(log, t0)
+    assert all(v == FULL_LIMIT for _, _, v in writes), "no bench limit written after enable 1"
+    assert {i for _, i, _ in writes} == {s.id for s in MODEL.servos}
+    full_at = max(t for t, _, _ in writes)            # every servo has its full Torque Limit
+    # before that only the held pose's goals (a held arm's ticks until the frame is taken),
+    # then the goals toward the park pose
+    before = [sync_goal_speed(p.raw)[0] for p in log.syncs(t0) if p.start < full_at]
+    assert all(g == held_goal for g in before), "a goal sent before the full Torque Limit"
+    after = [sync_goal_speed(p.raw)[0] for p in log.syncs(full_at)]
+    assert after and after[-1] == pytest.approx(PARK_UNITS, abs=1.0), "parked by goals after it"
+
+
+@pytest.mark.parametrize("held", [False, True], ids=["limp", "held"])
+def test_a_servo_reset_on_the_bench_is_set_up_again_with_the_bench_limit(held):
+    """Joint 3's servo browns out on the bench (its Torque Limit back at Max Torque, 1023).
+    Held, it is found (servo_reset, servo_resets counted) and the arm goes limp; limp, its
+    torque is off anyway. Either way, torque 1 sets it up with the bench's limit, not more."""
+    board, log = bench()
+    if held:
+        hold_then(board, log)
+    resets = board.heartbeats[-1]["servo_resets"]
+    servo = board.bus.servos[2]
+    servo.power_off()
+    servo.power_on()
+    assert servo.register("torque_limit") == 1023
+    keep_alive(board, 1.0)
+    hb = after_heartbeats(board)
+    assert state(board) == "limp"
+    if held:
+        assert hb["faults"] & FAULT["servo_reset"] and hb["servo_resets"] == resets + 1
+    t0 = board.bus.time
+    hold_then(board, log)
+    assert torque_limits(board) == [BENCH_LIMIT] * 3
+    assert servo.id in {i for _, i, v in torque_limit_writes(log, t0) if v == BENCH_LIMIT}
+    assert all(v == BENCH_LIMIT for _, _, v in torque_limit_writes(log, t0))
+
+
+@pytest.mark.parametrize("enabled", [BENCH, 1], ids=["bench", "enable 1"])
+def test_torque_1_while_a_reset_servo_is_being_read_holds_without_a_reset_found(enabled):
+    """A servo that browned out while limp comes back set up by torque 1, whose refit writes
+    every servo: the status READ of it that was on the wire as torque 1 came (asked for while
+    limp, answering Torque Limit 1023) is no reset found, and the arm holds."""
+    if enabled == BENCH:
+        board, log = bench()
+    else:
+        board = make_board(at=TRUTH)
+        log = BusLog(board)
+        board.send("enable", on=1)
+        keep_alive(board, 6.0)
+        board.send("torque", on=0)
+        keep_alive(board, 2 * HB_S)
+    assert state(board) == "limp"
+    servo = board.bus.servos[2]
+    servo.power_off()
+    servo.power_on()
+    keep_alive(board, 0.5)
+    resets = board.heartbeats[-1]["servo_resets"]
+    n = len(log.tx)
+    while not (len(log.tx) > n and log.tx[-1].inst == 0x02 and log.tx[-1].id == servo.id):
+        board.step(board.poll_us)                    # until the READ of the reset servo is sent
+    assert board.bus.time < log.tx[-1].end + 0.0005, "its reply still to come"
+    board.send("torque", on=1)
+    keep_alive(board, 1.0)
+    hb = after_heartbeats(board, 1)
+    assert state(board) == "jogged" and torque_enabled(board)
+    assert not hb["faults"] & FAULT["servo_reset"] and hb["servo_resets"] == resets
+    assert torque_limits(board) == [BENCH_LIMIT if enabled == BENCH else FULL_LIMIT] * 3
 
 
 def test_enable_1_while_the_bench_still_starts_configures_the_servos_again_and_parks():

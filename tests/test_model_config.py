@@ -214,6 +214,9 @@ NO_CROSS = "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
     ("return_delay_us = 20", "return_delay_us = 510", "servo.return_delay_us", "<= 508"),
     ("return_delay_us = 20", "return_delay_us = -2", "servo.return_delay_us", ">= 0"),
     ("park_speed_rpm = 10.0", "park_speed_rpm = 0.0", "servo.park_speed_rpm", ">= 0.111"),
+    ("bench_torque_limit = 0.35", "bench_torque_limit = 0.05", "servo.bench_torque_limit", ">= 0.1"),
+    ("bench_torque_limit = 0.35", "bench_torque_limit = 1.5", "servo.bench_torque_limit", "<= 1.0"),
+    ("bench_torque_limit = 0.35", "", "servo.bench_torque_limit", "missing"),
     ("park_speed_rpm = 10.0", "park_speed_rpm = 200.0", "servo.park_speed_rpm", "<= 113.5"),
     ("working_speed_rpm = 59.0", "working_speed_rpm = 114.0", "servo.working_speed_rpm", "<= 113.5"),
     ("working_speed_rpm = 59.0", "working_speed_rpm = -5.0", "servo.working_speed_rpm", ">= 0.111"),
@@ -541,3 +544,13 @@ def test_a_tuck_must_stay_inside_the_leg_distance_within_the_tolerance(tmp_path)
     assert generate.tuck(m) == (0.0, 0.0)
     msg = broken(tmp_path, "leg_distance = 100.0", "leg_distance = 8.0")
     assert "park.q" in msg and "past a leg" in msg, msg
+
+
+@pytest.mark.parametrize("share, units", [(0.35, 358), (0.1, 102), (1.0, 1022)])
+def test_bench_torque_limit_reaches_the_firmware_in_torque_limit_units(tmp_path, share, units):
+    """servo.bench_torque_limit of the AX-12A's maximum torque (Torque Limit 1023, its
+    e-manual), rounded; never 1023 itself, which marks a servo whose RAM reset."""
+    path = tmp_path / "arm.toml"
+    path.write_text(BASE.replace("bench_torque_limit = 0.35", f"bench_torque_limit = {share}", 1))
+    header = generate.render(path)["model_params.h"]
+    assert re.search(rf"#define MODEL_SERVO_BENCH_TORQUE_LIMIT {units}u\b", header), header

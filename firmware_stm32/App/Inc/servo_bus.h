@@ -137,6 +137,7 @@ typedef struct {
     /* service */
     bool limp;                          /* torque off on purpose (sbus_limp): no SYNC_WRITE */
     bool limp_pending;                  /* its broadcast WRITE of Torque Enable 0 is still to go */
+    uint16_t torque_limit;              /* Torque Limit as configured: full, or the bench's (sbus_power_limp) */
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */
@@ -144,8 +145,13 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
 /* Switch the servo supply; on restarts the boot and configuration, off stops all traffic. */
 void sbus_power(sbus_t *bus, bool on);
 /* Switch the servo supply on as sbus_power does, the servos configured with the torque off and
- * the bus limp (as after sbus_limp(true)): nothing moves them until sbus_limp(false). */
+ * the bus limp (as after sbus_limp(true)): nothing moves them until sbus_limp(false). The bench:
+ * Torque Limit MODEL_SERVO_BENCH_TORQUE_LIMIT, not the full one, until sbus_full_torque. */
 void sbus_power_limp(sbus_t *bus);
+/* The full Torque Limit from now on. Servos holding (RUNNING, not limp) are set up again with
+ * it, holding where they stand (refit), a SYNC_WRITE still queued dropped: command nothing
+ * until refit and refitting clear. Limp ones get it with their torque (sbus_limp(false)). */
+void sbus_full_torque(sbus_t *bus);
 /* Queue the next SYNC_WRITE (goal position and moving speed per servo, in units); ignored
  * unless RUNNING. A command not yet sent is replaced. */
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS]);

@@ -373,7 +373,8 @@ static void on_engage(app_t *app, bool on)
 
 /* enable: 0 off, 1 on (parks), 2 the bench (set_enabled). enable 1 on a running bench parks
  * from where the arm is, the servos left as they are (configured again, a limp servo's stale
- * goal would pull it there as its torque came on). */
+ * goal would pull it there as its torque came on), but each set up again first, holding where
+ * it stands with the full Torque Limit: the park is with the normal torque. */
 static void on_enable(app_t *app, uint8_t on)
 {
     const bool bench = on == 2u;
@@ -384,7 +385,10 @@ static void on_enable(app_t *app, uint8_t on)
     taken(app);
     if (app->bench && on != 0u && !bench && app->bus.state == SBUS_RUNNING) {
         app->bench = false;
-        (void)end_service(app);   /* the torque on (if limp), to the park pose */
+        sbus_full_torque(&app->bus);
+        app->motion.started = false;   /* from the readings once set up (start_motion) */
+        app->parked = app->jog = false;
+        torque_on(app, APP_START_PARK);
         return;
     }
     set_enabled(app, on != 0u, bench);

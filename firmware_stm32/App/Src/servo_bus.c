@@ -21,6 +21,8 @@ enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 /* Torque Limit as configured: one below Max Torque, so that a servo that lost its RAM (its
  * Torque Limit back at Max Torque) is told apart at its next status reading */
 #define TORQUE_LIMIT_SET (MAX_TORQUE - 1u)
+/* (the bench's, lower, is told apart from Max Torque as well) */
+typedef char bench_limit_below_max_torque[MODEL_SERVO_BENCH_TORQUE_LIMIT < MAX_TORQUE ? 1 : -1];
 /* The longest a servo may wait before answering: Return Delay Time 254 x 2 us. A servo
  * not configured yet still has the factory 500 us. */
 #define RETURN_DELAY_MAX_US 508u
@@ -91,6 +93,7 @@ void sbus_power(sbus_t *bus, bool on)
     bus->port->servo_power(bus->port->ctx, on);
     forget_servo_state(bus);
     bus->cfg_servo = bus->cfg_step = bus->cfg_attempt = 0;
+    bus->torque_limit = TORQUE_LIMIT_SET;
     enter(bus, on ? SBUS_BOOTING : SBUS_OFF);
 }
 
@@ -98,6 +101,16 @@ void sbus_power_limp(sbus_t *bus)
 {
     sbus_power(bus, true);
     bus->limp = true;   /* configured with Torque Enable 0: nothing is commanded until sbus_limp(false) */
+    bus->torque_limit = MODEL_SERVO_BENCH_TORQUE_LIMIT;   /* a wrong calibration pushes gently */
+}
+
+void sbus_full_torque(sbus_t *bus)
+{
+    if (bus->torque_limit == TORQUE_LIMIT_SET) return;
+    bus->torque_limit = TORQUE_LIMIT_SET;
+    if (bus->state != SBUS_RUNNING || bus->limp) return;   /* (written when configured, or with the torque) */
+    bus->command_pending = false;
+    bus->refit = (uint8_t)((1u << SBUS_SERVOS) - 1u);
 }
 
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS])
@@ -366,8 +379,8 @@ static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[
         data[0] = SAFE_SHUTDOWN;
         return AX_ALARM_SHUTDOWN;
     case CFG_W_TORQUE_LIMIT:
-        data[0] = (uint8_t)(TORQUE_LIMIT_SET & 0xFFu);
-        data[1] = (uint8_t)(TORQUE_LIMIT_SET >> 8);
+        data[0] = (uint8_t)(bus->torque_limit & 0xFFu);
+        data[1] = (uint8_t)(bus->torque_limit >> 8);
         return AX_TORQUE_LIMIT;
     default:   /* CFG_W_TORQUE_ENABLE */
         data[0] = bus->limp ? 0u : 1u;
@@ -448,10 +461,10 @@ static void configure(sbus_t *bus)
 
 /* --------------------------------------------------------------- running */
 
-/* A status reading of registers 32..43. Torque Limit back at Max Torque while running: the
- * servo lost its RAM (a brown-out), its torque is off and it goes limp; it is configured
- * again at once (refit). (An overload or overheating Shutdown sets Torque Limit to 0: the
- * tracking watch's business, not a reset.) */
+/* A status reading of registers 32..43. Torque Limit back at Max Torque while running (the
+ * full one and the bench's are both below it): the servo lost its RAM (a brown-out), its
+ * torque is off and it goes limp; it is configured again at once (refit). (An overload or
+ * overheating Shutdown sets Torque Limit to 0: the tracking watch's business, not a reset.) */
 static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
 {
     const uint8_t *q = p + (AX_PRESENT_POSITION - SBUS_STATUS_ADDR);
@@ -464,17 +477,19 @@ static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_
     s->failed = false;
     s->reads++;
     const uint8_t *limit = p + (AX_TORQUE_LIMIT - SBUS_STATUS_ADDR);
-    /* (limp: torque off on purpose; a reset then is set right when the torque comes back on) */
-    if ((limit[0] | limit[1] << 8) == MAX_TORQUE && bus->state == SBUS_RUNNING && !bus->limp) {
+    const uint8_t bit = (uint8_t)(1u << (s - bus->servo));
+    /* (limp: torque off on purpose; a reset then is set right when the torque comes back on,
+     * by the refit already due when a reading asked for while limp comes back) */
+    if ((limit[0] | limit[1] << 8) == MAX_TORQUE && bus->state == SBUS_RUNNING && !bus->limp && !(bus->refit & bit)) {
         s->resets++;
         bus->resets++;
-        bus->refit |= (uint8_t)(1u << (s - bus->servo));
+        bus->refit |= bit;
     }
 }
 
 /* The servo's RAM as configured, in one WRITE of 24..35: torque on, holding where it stands
  * (Goal Position = Present Position, at the park speed), compliance as after power-up, Torque
- * Limit as configured. */
+ * Limit as configured (the bench's on the bench). */
 static size_t build_refit(sbus_t *bus, const sbus_servo_t *s)
 {
     const uint16_t at = s->present_position;
@@ -482,7 +497,7 @@ static size_t build_refit(sbus_t *bus, const sbus_servo_t *s)
         1u, 0u, 1u, 1u, 32u, 32u,                              /* Torque Enable, LED, compliance */
         (uint8_t)(at & 0xFFu), (uint8_t)(at >> 8),              /* Goal Position */
         (uint8_t)(MODEL_PARK_SPEED & 0xFFu), (uint8_t)(MODEL_PARK_SPEED >> 8),
-        (uint8_t)(TORQUE_LIMIT_SET & 0xFFu), (uint8_t)(TORQUE_LIMIT_SET >> 8),
+        (uint8_t)(bus->torque_limit & 0xFFu), (uint8_t)(bus->torque_limit >> 8),
     };
     return dxl_build_write(bus->tx, sizeof bus->tx, s->id, AX_TORQUE_ENABLE, data, sizeof data);
 }
