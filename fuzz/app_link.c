@@ -41,7 +41,7 @@
  *     limits, body, legs, from the model file's numbers, not the generated checks) and
  *     rounds to exactly those units;
  *   - the servo supply is on exactly while the application is enabled, engaged implies
- *     enabled, a usable IMU and no servo tracking fault, and after a frame "enable 0" the supply is off when app_poll() returns;
+ *     enabled (never on the bench, enable 2, which never parks either), a usable IMU and no servo tracking fault, and after a frame "enable 0" the supply is off when app_poll() returns;
  *   - a valid frame always reaches the application (its good-frame counter moves) in the
  *     main-loop passes that drain the link input;
  *   - every link write is one valid LLCP frame of a message the board sends, of its size
@@ -214,9 +214,11 @@ static void check_frame(const uint8_t *buf, size_t n)
     CHECK(msg_heartbeat_unpack(bytes + 1, MSG_HEARTBEAT_SIZE, &hb));
     CHECK(isfinite(hb.set_x) && isfinite(hb.set_y) && isfinite(hb.set_z));
     CHECK(isfinite(hb.q1) && isfinite(hb.q2) && isfinite(hb.q3));
-    CHECK(hb.enabled <= 1u && hb.engaged <= 1u && hb.unreachable <= 1u && hb.state <= MSG_STATE_HOLDING);
+    CHECK(hb.enabled <= 2u && hb.engaged <= 1u && hb.unreachable <= 1u && hb.state <= MSG_STATE_JOGGED);
     CHECK((hb.state == MSG_STATE_OFF) == !hb.enabled);
-    CHECK(!hb.engaged || hb.enabled);
+    CHECK(!hb.engaged || hb.enabled == 1u);   /* (enabled 2, the bench: never engaged) */
+    /* the bench never parks: starting, limp, or at a pose a service command asked for */
+    CHECK(hb.enabled != 2u || hb.state == MSG_STATE_STARTING || hb.state >= MSG_STATE_LIMP);
     CHECK(hb.faults < (1u << MSG_FAULT_COUNT));
 }
 
@@ -444,7 +446,7 @@ static void poll_and_check(void)
     app_watch(&APP);
     polls++;
     CHECK(B.power == APP.enabled);
-    CHECK(!APP.engaged || APP.enabled);
+    CHECK(!APP.engaged || (APP.enabled && !APP.bench));
     /* engaged only with an attitude and servos that follow */
     CHECK(!APP.engaged || (APP.imu_ok && APP.imu_stale < APP_IMU_STALE_TICKS));
     CHECK(!APP.engaged || !track_fault(&APP.track));
