@@ -1,7 +1,9 @@
 """`uavarm calibrate imu|mounting|servos|lag|link PORT`: guided calibrations over the link,
 written into the model file. Each step says what to do, waits for Enter, takes the streamed samples
 (raw IMU, or servo positions), checks them, and says what it measured; a result that is
-implausible or noisy is refused with the reason and the model file is left as it was.
+implausible or noisy is refused with the reason and the model file is left as it was; an
+unusual one (plausible) is written only if allowed and confirmed again. The servos' zeros and
+directions, with their verification move, are servo_zero's.
 
 The procedures take `ask(text)` (wait for the user; the terminal's Enter) and
 `confirm(question)` (yes or no), so the tests drive them through a simulated board exactly
@@ -9,9 +11,11 @@ as a user does on the bench.
 
 The servo and lag calibrations limp and jog the arm: the board takes those only on the bench
 (no drone_attitude or drone_velocity for link.silence_timeout: refused as `flying` otherwise)
-and parks a limp or jogged arm once the link has been silent that long, so they keep it alive
-(ArmLink.kept_alive: the set position repeated, which marks no flight) and read the link on
-while the user acts; they park the arm when done."""
+and parks a limp or jogged arm once the link has been silent that long (a bench-enabled one
+goes limp instead), so they keep it alive (ArmLink.kept_alive: the set position repeated, which
+marks no flight) and read the link on while the user acts. The lag calibration parks the arm
+when done; the servo calibration cuts the servos' supply (the firmware's zeros are not yet the
+new ones)."""
 from __future__ import annotations
 
 import math
@@ -52,7 +56,7 @@ def _another_face(windows: list[Window]):
     return check
 
 
-def _ask_reading(arm, ask, text: str):
+def ask_reading(arm, ask, text: str):
     """ask(text) (or a confirm) while the link is read on, so that the rates of the turn the
     user makes meanwhile are all kept (and none pile up unread), and a kept-alive arm stays so;
     its answer."""
@@ -91,7 +95,7 @@ class _Record:
         """The still window the user holds after `text` (asked again, up to TRIES, while it is
         not still or check(window) raises CalibrationError)."""
         for attempt in range(TRIES):
-            _ask_reading(arm, ask, text)
+            ask_reading(arm, ask, text)
             self.frames += _take_streamed(arm)           # the turn
             first = len(self.frames)
             arm.collect("imu_raw", seconds, keep=True)

@@ -32,7 +32,7 @@ import numpy as np
 
 from . import model_edit, plausible
 from .fit import CalibrationError
-from .guide import TRIES, _ask_reading as ask_reading
+from .guide import TRIES, ask_reading
 from ..link import CommandRefused
 from ..model import config, messages, pose_tolerance, servo as servo_map
 
