@@ -172,9 +172,10 @@ def bench(**options):
 def least_clearance(s) -> float:
     """The least clearance (mm, plain geometry) of the arm's true poses while powered."""
     rows = np.array([r[2:5] for r in s.board.shaft_trace if r[1]], dtype=float)
+    m = config.load()
     zero, direction = (np.array(v, float) for v in TRUTH)
-    q = direction * (rows - zero) * math.radians(300.0) / 1023.0
-    return float(oracles.clearance_mm(config.load(), q).min())
+    q = direction * (rows - zero) * math.radians(m.servo_range_deg) / m.servo_units_max
+    return float(oracles.clearance_mm(m, q).min())
 
 
 @realtime

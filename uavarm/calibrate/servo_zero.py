@@ -186,12 +186,16 @@ def _latest(arm, field: str, seconds: float = 0.3) -> list[int]:
     return [latest[j] for j in range(3)]
 
 
+def _units_per_deg(m: config.Model) -> float:
+    return float(servo_map.units_per_rad(m)) * math.pi / 180
+
+
 class _Arm:
     """The arm during the verification: jogs to poses in the new calibration's units."""
 
     def __init__(self, arm, m: config.Model, zeros, directions):
         self.arm, self.zeros, self.directions = arm, zeros, directions
-        self.per_deg = float(servo_map.units_per_rad(m)) * math.pi / 180
+        self.per_deg = _units_per_deg(m)
 
     def units(self, q_deg) -> list[int]:
         return [round(z + d * q * self.per_deg) for z, d, q in zip(self.zeros, self.directions, q_deg)]
@@ -259,7 +263,7 @@ def _check_load(arm, m: config.Model, pose: Pose, directions) -> None:
 
 
 def _departures(m: config.Model, zeros, directions) -> list[plausible.Departure]:
-    per_deg = float(servo_map.units_per_rad(m)) * math.pi / 180
+    per_deg = _units_per_deg(m)
     out = []
     for name, s, z, d in zip(config.JOINTS, m.servos, zeros, directions):
         if abs(z - s.zero) > ZERO_WINDOW_DEG * per_deg:
