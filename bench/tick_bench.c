@@ -172,8 +172,10 @@ static void period(const int32_t *sample, bool request)
     }
     imu_regs[MPU_REG_INT_STATUS] = MPU_INT_DATA_RDY;   /* a new sample, as the chip flags it */
     now += MODEL_TICK_US;
-    app.stab.link.valid = app.stab.vel.valid = app.engaged;   /* in flight: the drone's messages fresh */
+    /* in flight: the drone's messages fresh (heard and accepted a tick ago) */
+    app.stab.link.valid = app.stab.vel.valid = app.stab.link.heard = app.stab.vel.heard = app.engaged;
     app.stab.link.accepted_us = app.stab.vel.accepted_us = now - MODEL_TICK_US;
+    app.stab.link.heard_us = app.stab.vel.heard_us = app.stab.link.arrived_us = app.stab.vel.arrived_us = now - MODEL_TICK_US;
     if (request) app_request_tick(&app);
     app_poll(&app);   /* the tick: IMU, stabiliser, IK, command; SYNC_WRITE out */
     app_poll(&app);   /* SYNC_WRITE sent (no reply) */
@@ -197,24 +199,29 @@ int bench_run(const int32_t *raw, uint32_t n, uint32_t ticks)
     return ok && app.engaged && app.bus.sync_writes - writes == expected && app.bus.status_reads - reads == expected;
 }
 
+/* One drone message: the attitude claims the estimate's own (so the gate takes it), the
+ * velocity a constant one. */
+static stab_link_status_t drone_message(uint32_t which, uint16_t seq)
+{
+    static const float v[3] = { 0.5f, -0.2f, 0.0f };
+    float roll, pitch;
+    if (which == 2) return stab_drone_velocity(&app.stab, seq, now - 20000u, v, now);
+    stab_attitude(&app.stab, &roll, &pitch);
+    return stab_drone_attitude(&app.stab, seq, now - 20000u, roll, pitch, now);
+}
+
 /* The cost of one drone message handled by the stabiliser in the main loop (which 1:
  * drone_attitude, 2: drone_velocity): after the setup and n ticks, a first message restarts
  * its stream, two ticks pass, and a second one (second = 1) is fused like every message in
  * flight, or none (second = 0). bench/run.py takes the difference. */
 int bench_message(const int32_t *raw, uint32_t n, uint32_t which, uint32_t second)
 {
-    static const float v[3] = { 0.5f, -0.2f, 0.0f };
     int ok = setup();
     for (uint32_t k = 0; k + 2 < n; ++k) period(raw + 6 * k, true);
-    app.stab.link.valid = app.stab.vel.valid = false;
-    stab_link_status_t first = which == 1 ? stab_drone_attitude(&app.stab, 1, now - 20000u, 0.01f, 0.02f, now)
-                                          : stab_drone_velocity(&app.stab, 1, now - 20000u, v, now);
+    app.stab.link.valid = app.stab.vel.valid = app.stab.link.heard = app.stab.vel.heard = false;
+    stab_link_status_t first = drone_message(which, 1);
     period(raw + 6 * (n - 2), true);
     period(raw + 6 * (n - 1), true);
-    stab_link_status_t next = STAB_LINK_ACCEPTED;
-    if (second) {
-        next = which == 1 ? stab_drone_attitude(&app.stab, 2, now - 20000u, 0.01f, 0.02f, now)
-                          : stab_drone_velocity(&app.stab, 2, now - 20000u, v, now);
-    }
+    stab_link_status_t next = second ? drone_message(which, 2) : STAB_LINK_ACCEPTED;
     return ok && first == STAB_LINK_ACCEPTED && next == STAB_LINK_ACCEPTED;
 }

@@ -404,6 +404,25 @@ def params_context(m: config.Model):
     }
 
 
+def gate_params(e: config.Estimator) -> dict:
+    """The drone messages' gate (stabiliser.c): the expected spreads times gate_sigmas, in
+    radians and m/s, and its times in microseconds."""
+    n = sp.nsimplify(e.gate_sigmas, rational=True)
+    rad = lambda deg: sp.rad(sp.nsimplify(deg, rational=True))
+    return {
+        "gate_sigmas": float32_literal(n),
+        "gate_attitude": float32_literal(n * rad(e.drone_attitude_noise_deg)),
+        "gate_velocity": float32_literal(n * sp.nsimplify(e.drone_velocity_noise, rational=True)),
+        # the IMU's velocity error per radian of tilt: g over the velocity correction's k_v
+        "gate_velocity_per_rad": float32_literal(velocity.G / velocity.gains(e.velocity_bandwidth)["k_v"]),
+        "gate_drift_per_us": float32_literal(n * rad(e.drift_dps) / 10 ** 6),
+        "gate_drift_max": float32_literal(n * rad(e.drift_max_deg)),
+        "reject_after_us": round(e.reject_after * 1e6),
+        "retake_after_us": round(e.retake_after * 1e6),
+        "correction_max_sin": float32_literal(sp.sin(rad(e.correction_max_deg))),
+    }
+
+
 def estimator_params(m: config.Model):
     e = m.estimator
     us = lambda s: round(s * 1e6)
@@ -431,6 +450,7 @@ def estimator_params(m: config.Model):
         "link_bias_gain_with_velocity": float32_literal(e.link_bias_gain_with_velocity),
         "fc_error_gain": float32_literal(e.fc_error_gain),
         "fc_error_max": float32_literal(sp.rad(sp.nsimplify(e.fc_error_max_deg, rational=True))),
+        **gate_params(e),
         # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
         "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)
                                          / sp.nsimplify(max(e.align_accel_gain, 1.0), rational=True))),
@@ -522,6 +542,7 @@ def render(model_path: Path = config.DEFAULT_MODEL) -> dict[str, str]:
         "pi": sp.pi,
         "messages": messages.MESSAGES,
         "faults": messages.FAULTS,
+        "sources": messages.SOURCES,
         "states": messages.STATES,
         "refusals": messages.REFUSALS,
         "reset_causes": messages.RESET_CAUSES,

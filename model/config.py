@@ -74,9 +74,11 @@ _KEYS_BY_TABLE = {
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
                  "link_bias_gain link_delay_min link_delay_max link_timeout lead_time drone_velocity "
                  "velocity_bandwidth link_gain_with_velocity link_bias_gain_with_velocity fc_error_gain "
-                 "fc_error_max_deg accel_bias_bandwidth accel_bias_max_g",
+                 "fc_error_max_deg accel_bias_bandwidth accel_bias_max_g gate_sigmas drone_attitude_noise_deg "
+                 "drone_velocity_noise drift_dps drift_max_deg reject_after retake_after correction_max_deg",
 }
 UNKNOWN_KEYS_NAMED = 5
+GATE_WIDEST_DEG = 45.0        # the drone-attitude gate at its widest (deg)
 KNOWN_KEYS = tuple(f"{table}.{name}" for table, names in _KEYS_BY_TABLE.items() for name in names.split())
 
 
@@ -229,6 +231,14 @@ class Estimator:
     fc_error_max_deg: float        # deg: the clamp of the flight controller's estimated error
     accel_bias_bandwidth: float    # rad/s: the accelerometer's bias learnt along up (0: not learnt)
     accel_bias_max_g: float        # g: the clamp of its estimate
+    gate_sigmas: float             # a drone message is refused beyond this many expected spreads
+    drone_attitude_noise_deg: float  # deg, 1 sigma: the flight controller's attitude error
+    drone_velocity_noise: float    # m/s per axis, 1 sigma: the odometry's velocity error
+    drift_dps: float               # deg/s: how fast the estimate may drift without the drone's messages
+    drift_max_deg: float           # deg: ... and how far at most
+    reject_after: float            # s: a stream refused this long is dropped (and flagged)
+    retake_after: float            # s: a dropped stream agreeing this long is taken back
+    correction_max_deg: float      # deg: the most one attitude message turns the estimate by
 
 
 class _Reader:
@@ -574,6 +584,15 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
         fc_error_max_deg=r.number(k + "fc_error_max_deg", nonnegative=True, hi=10.0),
         accel_bias_bandwidth=r.number(k + "accel_bias_bandwidth", nonnegative=True, hi=5.0),
         accel_bias_max_g=r.number(k + "accel_bias_max_g", positive=True, hi=0.5),
+        # the gate: under 1 sigma refuses honest data, over 20 takes 20 deg lies
+        gate_sigmas=r.number(k + "gate_sigmas", lo=1.0, hi=20.0),
+        drone_attitude_noise_deg=r.number(k + "drone_attitude_noise_deg", positive=True, hi=10.0),
+        drone_velocity_noise=r.number(k + "drone_velocity_noise", positive=True, hi=5.0),
+        drift_dps=r.number(k + "drift_dps", nonnegative=True, hi=90.0),
+        drift_max_deg=r.number(k + "drift_max_deg", nonnegative=True, hi=45.0),
+        reject_after=r.number(k + "reject_after", lo=dt, hi=60.0),
+        retake_after=r.number(k + "retake_after", nonnegative=True, hi=60.0),
+        correction_max_deg=r.number(k + "correction_max_deg", lo=0.01, hi=45.0),
     )
     if est.link_delay_min >= est.link_delay_max:
         raise r.fail(k + "link_delay_min", f"must be less than link_delay_max ({est.link_delay_max}), "
@@ -581,6 +600,11 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
     if math.ceil(est.link_delay_max * sample_rate) + 2 > HISTORY_MAX:
         raise r.fail(k + "link_delay_max", f"the attitude history holds {HISTORY_MAX - 2} samples: at most "
                                            f"{(HISTORY_MAX - 2) / sample_rate} s at {sample_rate} Hz, got {est.link_delay_max}")
+    widest = est.gate_sigmas * math.hypot(est.drone_attitude_noise_deg, est.drift_max_deg)
+    if widest > GATE_WIDEST_DEG:
+        raise r.fail(k + "gate_sigmas", f"the attitude gate opens to gate_sigmas x hypot(drone_attitude_noise_deg, "
+                                        f"drift_max_deg) = {widest:.1f} deg: at most {GATE_WIDEST_DEG} (wider lets a "
+                                        f"flight controller's lie of that size in)")
     if est.drone_attitude and est.kind != "quaternion":
         raise r.fail(k + "drone_attitude", "the drone's attitude is fused by the quaternion estimator only: "
                                            "set kind = \"quaternion\" or drone_attitude = false")

@@ -100,12 +100,13 @@ MESSAGES = (
         ("servo1_voltage", "u8"), ("servo1_temperature", "u8"), ("servo1_load", "u16"),
         ("servo2_voltage", "u8"), ("servo2_temperature", "u8"), ("servo2_load", "u16"),
         ("servo3_voltage", "u8"), ("servo3_temperature", "u8"), ("servo3_load", "u16"),
-        ("lagging_joints", "u8"),
+        ("lagging_joints", "u8"), ("estimate_sources", "u8"),
     ), "every 500 ms: sequence number and uptime, enabled (0 off, 1 on, 2 on limp for calibration: "
        "enable 2, the bench), state, set position, joint angles (rad), fault flags, "
        "counters, the bus and reset state (with the exception that halted the firmware before it), firmware and model identity, each servo's supply (0.1 V), "
-       "temperature (deg C) and load (AX-12A units, bit 10 = direction), and the joints whose shaft fell "
-       "behind its goal since the last heartbeat (bit 0 = joint 1; faults.servo_lagging)"),
+       "temperature (deg C) and load (AX-12A units, bit 10 = direction), the joints whose shaft fell "
+       "behind its goal since the last heartbeat (bit 0 = joint 1; faults.servo_lagging), and what corrects "
+       "the attitude estimate (estimate_sources: SOURCES bits)"),
     Message("imu_raw", 0x21, "to_drone", (
         ("seq", "u16"), ("stamp_us", "u32"),
         ("ax", "i16"), ("ay", "i16"), ("az", "i16"), ("temperature", "i16"),
@@ -192,6 +193,18 @@ FAULTS = (
     ("servo_lagging", "a servo's shaft fell further behind its goal than the motion allows for (slowed by "
                       "its supply or load, or blocked): the goals wait for it; if it does not catch up, "
                       "servo_tracking follows and the arm parks. heartbeat.lagging_joints says which"),
+    ("drone_attitude_rejected", "the drone's attitude disagreed with the arm's IMU for longer than the model's "
+                                "reject_after: dropped, the estimate goes on without it until it agrees again"),
+    ("drone_velocity_rejected", "the drone's velocity disagreed with the arm's IMU for longer than the model's "
+                                "reject_after: dropped, the estimate goes on without it until it agrees again"),
+)
+
+# Bits of heartbeat.estimate_sources: what corrects the attitude estimate now (the gyro always
+# propagates it).
+SOURCES = (
+    ("accelerometer", "the arm's own accelerometer (neither of the drone's streams is fused)"),
+    ("drone_attitude", "the drone's attitude (drone_attitude messages accepted within the link timeout)"),
+    ("drone_velocity", "the drone's velocity (drone_velocity messages accepted within the link timeout)"),
 )
 
 

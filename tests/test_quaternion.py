@@ -201,8 +201,9 @@ def tilt_error(rot_a, up):
 class StabRun:
     """stab_sample at the model's rate on a scripted truth; accel 'gravity' (bench: the
     accelerometer reads up) or 'thrust' (coordinated flight: it reads body z whatever the
-    tilt); a constant gyro bias; optional drone_attitude messages (rate Hz, delay s, the drone
-    clock offset by `clock` us)."""
+    tilt, except the first sample, which reads up: the arm aligned before the flight, as the
+    firmware does at rest); a constant gyro bias; optional drone_attitude messages (rate Hz,
+    delay s, the drone clock offset by `clock` us)."""
 
     def __init__(self, ffi, lib, truth, *, accel="gravity", bias=(0, 0, 0), engaged=True):
         self.ffi, self.lib, self.truth = ffi, lib, truth
@@ -217,7 +218,8 @@ class StabRun:
     def sample(self):
         t = self.t_us / 1e6
         rot = self.truth(t)
-        self.a[0:3] = list(rot.inv().apply([0, 0, 1])) if self.accel == "gravity" else [0.0, 0.0, 1.0]
+        aligned = self.accel == "gravity" or not self.s.started
+        self.a[0:3] = list(rot.inv().apply([0, 0, 1])) if aligned else [0.0, 0.0, 1.0]
         self.g[0:3] = [float(v) for v in body_rate(self.truth, t) + self.bias]
         self.lib.stab_sample(self.s, self.a, self.g, self.t_us, self.engaged)
         self.errors.append(tilt_error(rot, list(self.s.up)))
@@ -612,7 +614,11 @@ def test_bad_messages_are_refused_and_change_nothing(fw):
     fresh = ffi.new("stab_t *")
     lib.stab_reset(fresh)
     assert lib.stab_drone_attitude(fresh, 1, 1000, 0.0, 0.0, now) == lib.STAB_LINK_STALE
-    assert status(last_seq + 1, last_stamp + 20_000, 0.01, 0.02, at=now + 10_000) == lib.STAB_LINK_ACCEPTED
+    # a level claim while the drone rocks +-10 deg disagrees with the estimate: refused by the
+    # gate (changing nothing); the truth at that stamp is taken
+    assert status(last_seq + 1, last_stamp + 20_000, 0.0, 0.0, at=now + 10_000) == lib.STAB_LINK_DISAGREES
+    pitch, roll = rocking((last_stamp + 40_000 - 123_456_789) / 1e6).as_euler("ZYX")[1:]   # (StabRun's clock)
+    assert status(last_seq + 2, last_stamp + 40_000, roll, pitch, at=now + 30_000) == lib.STAB_LINK_ACCEPTED
     # the drone upside down from the estimate (roll pi against a near-level estimate): no
     # unique correction, refused (a zero correction quaternion would make the estimate NaN)
     flipped = ffi.new("stab_t *")
@@ -621,7 +627,7 @@ def test_bad_messages_are_refused_and_change_nothing(fw):
     lib.stab_sample(flipped, a, g, now - 20_000, True)
     assert lib.stab_drone_attitude(flipped, 1, 1000, math.pi, 0.0, now) == lib.STAB_LINK_OPPOSITE
     assert list(flipped.quat.q) == [1.0, 0.0, 0.0, 0.0]
-    assert status((last_seq + 1) & 0xFFFF, last_stamp + 40_000, 0.0, 0.0, at=now + 30_000) \
+    assert status((last_seq + 2) & 0xFFFF, last_stamp + 60_000, 0.0, 0.0, at=now + 50_000) \
         == lib.STAB_LINK_OUT_OF_ORDER
 
 
@@ -636,7 +642,8 @@ def test_silence_falls_back_to_the_imu_and_a_restarted_sender_is_taken(fw):
     run.run(0.5)   # no messages: the IMU alone
     assert not lib.stab_link_fresh(s, run.t_us)
     # the drone's computer restarted: seq and clock start again; taken after the silence
-    assert lib.stab_drone_attitude(s, 0, 5, 0.0, 0.0, run.t_us) == lib.STAB_LINK_ACCEPTED
+    pitch, roll = rocking(run.t_us / 1e6 - 0.01).as_euler("ZYX")[1:]
+    assert lib.stab_drone_attitude(s, 0, 5, roll, pitch, run.t_us) == lib.STAB_LINK_ACCEPTED
     assert lib.stab_link_fresh(s, run.t_us)
 
 

@@ -70,6 +70,7 @@ class Run:
     link_messages: int = 0
     faults: list = field(default_factory=list)
     last_heartbeat: dict = field(default_factory=dict)
+    gate_refusals: dict = field(default_factory=dict)   # stream -> messages the gate refused, drops
 
     def metrics(self) -> dict:
         e = np.linalg.norm(self.error_mm[self.scored], axis=1)
@@ -280,5 +281,7 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     true_att = np.array(rec_true)
     err = ee_error(model, q, true_att[:, 0], true_att[:, 1], scenario.target)
     t = np.array(rec_t) - st.preflight - st.engage_at
+    refusals = {name: (st_.disagreed, st_.rejections) for name, st_ in (("drone_attitude", stab.link), ("drone_velocity", stab.vel))}
     return Run(scenario.name, seed, label, t, err, true_att, np.array(rec_est), t >= st.settle,
-               flight, out_of_reach, unreachable, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {})
+               flight, out_of_reach, unreachable, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {},
+               refusals)

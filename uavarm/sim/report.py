@@ -39,6 +39,8 @@ class Row:
     wall_s: float
     unreachable: int = 0             # ticks with the set position refused as unreachable
     ticks: int = 0                   # ticks recorded (from engage)
+    refused: int = 0                 # drone messages the gate refused (honest ones, in the simulator)
+    dropped: int = 0                 # times a stream was dropped for disagreeing
 
 
 def summarise(runs: list[closed_loop.Run], wall_s: float = 0.0) -> Row:
@@ -50,16 +52,17 @@ def summarise(runs: list[closed_loop.Run], wall_s: float = 0.0) -> Row:
     return Row(runs[0].scenario, runs[0].label, len(runs), m["seconds"], float(np.sqrt(np.mean(e ** 2))),
                float(np.percentile(e, 95)), float(e.max()), float(np.sqrt(np.mean(a ** 2))), float(a.max()),
                sum(r.out_of_reach_ticks for r in runs), wall_s, sum(r.unreachable_ticks for r in runs),
-               sum(len(r.t) for r in runs))
+               sum(len(r.t) for r in runs), sum(n for r in runs for n, _ in r.gate_refusals.values()),
+               sum(d for r in runs for _, d in r.gate_refusals.values()))
 
 
 HEADER = ("scenario", "estimator", "seeds", "s each", "EE RMS mm", "EE p95 mm", "EE max mm",
-          "att RMS deg", "att max deg", "out of reach ticks")
+          "att RMS deg", "att max deg", "out of reach ticks", "drone msgs refused (drops)")
 
 
 def cells(r: Row) -> tuple:
     return (r.scenario, r.label, str(r.seeds), f"{r.seconds:.0f}", f"{r.rms:.2f}", f"{r.p95:.2f}",
-            f"{r.max:.2f}", f"{r.att_rms:.2f}", f"{r.att_max:.2f}", str(r.out_of_reach))
+            f"{r.max:.2f}", f"{r.att_rms:.2f}", f"{r.att_max:.2f}", str(r.out_of_reach), f"{r.refused} ({r.dropped})")
 
 
 def notes(r: Row, target) -> list[str]:

@@ -743,6 +743,8 @@ uint16_t app_faults(const app_t *app)
     if (app->servo_reset) f |= MSG_FAULT_SERVO_RESET;
     if (app->timing_fault) f |= MSG_FAULT_TIMING;
     if (app->motion_refused || app->motion.blocked) f |= MSG_FAULT_MOTION_BLOCKED;
+    if (app->stab.link.rejected) f |= MSG_FAULT_DRONE_ATTITUDE_REJECTED;
+    if (app->stab.vel.rejected) f |= MSG_FAULT_DRONE_VELOCITY_REJECTED;
     return f;
 }
 
@@ -831,6 +833,7 @@ static void send_heartbeat(app_t *app)
     hb.servo3_temperature = s[2].present_temperature;
     hb.servo3_load = s[2].present_load;
     hb.lagging_joints = (uint8_t)(app->behind | app->lagging_since_heartbeat);
+    hb.estimate_sources = stab_sources(&app->stab, now_us(app));
     if (send_payload(app, payload, msg_heartbeat_pack(&hb, payload, sizeof payload))) {
         app->heartbeats_sent++;
         app->faults_since_heartbeat = 0;

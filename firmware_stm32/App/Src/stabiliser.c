@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "fastmath.h"
+#include "messages.h"
 #include "model_params.h"
 
 /* The history must cover the longest accepted link delay (model/config.py checks it too). */
@@ -13,6 +14,12 @@ typedef char stab_history_fits[(MODEL_LINK_HISTORY <= STAB_HISTORY) ? 1 : -1];
 /* The clocks' offset estimate may rise by this much per accepted message, so that it follows
  * a drone clock running slower than ours (100 ppm at 50 messages/s). */
 #define LINK_OFFSET_CREEP_US 2u
+/* A stream's stamps may run ahead of the board's clock by the link's jitter (a message delayed
+ * link_delay_max, then one delayed link_delay_min) plus the clocks' drift: 1/5000 (200 ppm). */
+#define LINK_JITTER_US (MODEL_LINK_DELAY_MAX_US - MODEL_LINK_DELAY_MIN_US)
+#define CLOCK_DRIFT_DIVISOR 5000u
+/* The attitude gate at its widest (rad, under 60 deg, where its sine's series below holds) */
+#define GATE_ATTITUDE_WIDEST 1.0f
 
 #define VELOCITY_MAX 50.0f    /* m/s: a larger component is refused */
 /* m/s: a larger step from one message to the next restarts the velocity estimate: no flight
@@ -52,6 +59,23 @@ bool stab_link_fresh(const stab_t *s, uint32_t now_us)
 bool stab_velocity_fresh(const stab_t *s, uint32_t now_us)
 {
     return MODEL_DRONE_VELOCITY && stream_fresh(&s->vel, now_us);
+}
+
+/* Is the stream's timing still the last heard message's (the next one is checked against it)?
+ * While messages keep arriving (refused ones too) within the link timeout, for up to
+ * reject_after + retake_after without one heard: then a sender whose clock jumped is heard
+ * again from scratch, as after a silence. */
+#define TIMING_KEPT_US (MODEL_REJECT_AFTER_US + MODEL_RETAKE_AFTER_US)
+static bool heard_lately(const stab_stream_t *st, uint32_t now_us)
+{
+    return st->heard && now_us - st->arrived_us < MODEL_LINK_TIMEOUT_US && now_us - st->heard_us < TIMING_KEPT_US;
+}
+
+uint8_t stab_sources(const stab_t *s, uint32_t now_us)
+{
+    const bool attitude = stab_link_fresh(s, now_us), velocity = stab_velocity_fresh(s, now_us);
+    return (uint8_t)((attitude || velocity ? 0u : MSG_SOURCE_ACCELEROMETER) | (attitude ? MSG_SOURCE_DRONE_ATTITUDE : 0u)
+                     | (velocity ? MSG_SOURCE_DRONE_VELOCITY : 0u));
 }
 
 /* The first sample after a reset: filters and attitude at rest on it. Not inlined: the
@@ -137,6 +161,9 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     else bias_at_rest(s, accel_g, gyro_rad_s);
     /* The raw gyro is integrated (no filter delay); the chip's DLPF keeps it from aliasing. */
     const bool aided = stab_velocity_fresh(s, now_us);
+    /* the IMU's velocity is integrated while the drone's is heard, fused or not: the gate
+     * compares the two */
+    const bool tracked = aided || (MODEL_DRONE_VELOCITY && heard_lately(&s->vel, now_us));
     if (stab_link_fresh(s, now_us) || aided) {
         est_quat_propagate(&s->quat, gyro_rad_s, dt, s->up);   /* the drone's messages correct */
         s->accel_idle = true;   /* (the filtered accelerometer is not used meanwhile) */
@@ -155,7 +182,7 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     }
     memcpy(s->rate, s->quat.rate, sizeof s->rate);
     /* the raw specific force: the chip's DLPF is filter enough for an integral */
-    if (aided) est_vel_predict(&s->velocity, accel_g, s->up, s->rate, dt);
+    if (tracked) est_vel_predict(&s->velocity, accel_g, s->up, s->rate, dt);
     if (MODEL_DRONE_ATTITUDE || MODEL_DRONE_VELOCITY) remember(s, now_us);
 #else
     static const float no_bias[3] = { 0.0f, 0.0f, 0.0f };
@@ -208,32 +235,107 @@ static bool history_at(const stab_t *s, uint32_t t, float q[4], float v[3])
     return false;
 }
 
-/* The timing of a message of stream st: refused if not newer than the last one taken while the
- * stream is fresh, or delayed beyond the model's link_delay_max. Delay: arrival - stamp is the
- * clocks' offset plus the delay; its smallest value is the offset plus the link's smallest
- * delay (from the model). */
+/* The timing of a message of stream st, heard lately (fresh) or not: refused if not newer than
+ * the last one heard, delayed beyond the model's link_delay_max, or stamped ahead of the board's
+ * clock. Delay: arrival - stamp is the clocks' offset plus the delay; its smallest value is the
+ * offset plus the link's smallest delay (from the model). The floor under arrival - stamp is
+ * set when the stream starts, a jitter below the first one, and falls only at the clocks'
+ * drift: stamps that advance faster than the board's clock (several messages' worth in one
+ * tick) are refused however small each step. */
+typedef struct {
+    uint32_t offset, floor, delay;
+} timing_t;
+
 static stab_link_status_t admit(const stab_stream_t *st, bool fresh, uint16_t seq, uint32_t stamp_us,
-                                uint32_t now_us, uint32_t *offset, uint32_t *delay)
+                                uint32_t now_us, timing_t *tm)
 {
     if (fresh && ((int16_t)(uint16_t)(seq - st->seq) <= 0 || (int32_t)(stamp_us - st->stamp_us) <= 0)) {
         return STAB_LINK_OUT_OF_ORDER;   /* after a silence a restarted sender is taken again */
     }
     const uint32_t arrival = now_us - stamp_us;
-    *offset = fresh ? st->offset_us + LINK_OFFSET_CREEP_US : arrival;
-    if ((int32_t)(arrival - *offset) < 0) *offset = arrival;
-    *delay = arrival - *offset + MODEL_LINK_DELAY_MIN_US;
-    return *delay > MODEL_LINK_DELAY_MAX_US ? STAB_LINK_STALE : STAB_LINK_ACCEPTED;
+    if (fresh) {
+        tm->floor = st->floor_us - (now_us - st->heard_us) / CLOCK_DRIFT_DIVISOR;
+        if ((int32_t)(arrival - tm->floor) < 0) return STAB_LINK_AHEAD;   /* (the caller distrusts it) */
+    }
+    tm->offset = fresh ? st->offset_us + LINK_OFFSET_CREEP_US : arrival;
+    if ((int32_t)(arrival - tm->offset) < 0) tm->offset = arrival;
+    /* the floor rises with the offset (a drone clock running slow), never falls with it */
+    if (!fresh || (int32_t)(tm->offset - LINK_JITTER_US - tm->floor) > 0) tm->floor = tm->offset - LINK_JITTER_US;
+    tm->delay = arrival - tm->offset + MODEL_LINK_DELAY_MIN_US;
+    return tm->delay > MODEL_LINK_DELAY_MAX_US ? STAB_LINK_STALE : STAB_LINK_ACCEPTED;
 }
 
-static void take(stab_stream_t *st, uint16_t seq, uint32_t stamp_us, uint32_t now_us, uint32_t offset, uint32_t delay)
+/* A message of good timing: the stream's timing moves on to it, whatever the gate says. After
+ * a silence the gate's count of refusals (not a drop) starts again. */
+static void hear(stab_stream_t *st, bool fresh, uint16_t seq, uint32_t stamp_us, uint32_t now_us, const timing_t *tm)
 {
-    st->valid = true;
+    if (!fresh) st->refusing = st->agreeing = false;
+    st->heard = true;
     st->seq = seq;
     st->stamp_us = stamp_us;
+    st->heard_us = now_us;
+    st->offset_us = tm->offset;
+    st->floor_us = tm->floor;
+    st->delay_us = tm->delay;
+}
+
+static void take(stab_stream_t *st, uint32_t now_us)
+{
+    st->valid = true;
     st->accepted_us = now_us;
-    st->offset_us = offset;
-    st->delay_us = delay;
     st->accepted++;
+}
+
+/* The gate's verdict on a heard message that agrees with the estimate or not: ACCEPTED to fuse
+ * it, else why not. A stream refused (by the gate, or for stamps ahead of the board's clock)
+ * for reject_after is dropped; a dropped one is taken back once it has agreed for
+ * retake_after. */
+static void distrust(stab_stream_t *st, uint32_t now_us)
+{
+    st->agreeing = false;
+    if (!st->refusing) {
+        st->refusing = true;
+        st->refusing_us = now_us;
+    }
+    if (!st->rejected && now_us - st->refusing_us >= MODEL_REJECT_AFTER_US) {
+        st->rejected = true;
+        st->rejections++;
+    }
+}
+
+static stab_link_status_t judge(stab_stream_t *st, bool agrees, uint32_t now_us)
+{
+    if (!agrees) {
+        distrust(st, now_us);
+        st->disagreed++;
+        return STAB_LINK_DISAGREES;
+    }
+    st->refusing = false;
+    if (!st->rejected) return STAB_LINK_ACCEPTED;
+    if (!st->agreeing) {
+        st->agreeing = true;
+        st->agreeing_us = now_us;
+    }
+    if (now_us - st->agreeing_us < MODEL_RETAKE_AFTER_US) return STAB_LINK_REJECTED;
+    st->rejected = st->agreeing = false;
+    return STAB_LINK_ACCEPTED;
+}
+
+/* gate_sigmas times how far the tilt may be off: what the last correction by a drone message
+ * left, and how far it may have drifted since (rad). (After 71 minutes without one the
+ * microsecond count wraps and the gate narrows: it refuses more, never less.) */
+static float drift_gate(const stab_t *s, uint32_t now_us)
+{
+    if (!s->corrected) return MODEL_GATE_DRIFT_MAX;
+    return fminf(s->doubt + (float)(now_us - s->corrected_us) * MODEL_GATE_DRIFT_PER_US, MODEL_GATE_DRIFT_MAX);
+}
+
+/* A drone message corrected the attitude at now_us, leaving a disagreement of about left (rad). */
+static void corrected(stab_t *s, uint32_t now_us, float left)
+{
+    s->corrected = true;
+    s->corrected_us = now_us;
+    s->doubt = MODEL_GATE_SIGMAS * left;
 }
 
 static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
@@ -253,23 +355,44 @@ static void move_fc_error(stab_t *s, const float delta[3])
 stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_us, float roll, float pitch,
                                        uint32_t now_us)
 {
-    const bool fresh = stab_link_fresh(s, now_us);
-    uint32_t offset = 0u, delay = 0u;
+    const bool fresh = stab_link_fresh(s, now_us), heard = heard_lately(&s->link, now_us);
+    const uint32_t last_stamp = s->link.stamp_us;
+    timing_t tm = { 0u, 0u, 0u };
     float q_then[4], v_then[3], c[4], err[3];
     if (!MODEL_DRONE_ATTITUDE || !MODEL_ESTIMATOR_QUATERNION) return refuse(&s->link, STAB_LINK_OFF);
     if (!(fabsf(roll) <= 3.1415927f && fabsf(pitch) <= 1.5707964f)) {   /* NaN fails too */
         return refuse(&s->link, STAB_LINK_NOT_FINITE);
     }
-    stab_link_status_t why = admit(&s->link, fresh, seq, stamp_us, now_us, &offset, &delay);
-    if (why == STAB_LINK_ACCEPTED && !history_at(s, now_us - delay, q_then, v_then)) why = STAB_LINK_STALE;
+    s->link.arrived_us = now_us;
+    stab_link_status_t why = admit(&s->link, heard, seq, stamp_us, now_us, &tm);
+    if (why == STAB_LINK_AHEAD) distrust(&s->link, now_us);
+    if (why == STAB_LINK_ACCEPTED && !history_at(s, now_us - tm.delay, q_then, v_then)) why = STAB_LINK_STALE;
     if (why != STAB_LINK_ACCEPTED) return refuse(&s->link, why);
-    /* with the velocity fresh too, the drone's attitude corrects with gains of their own (none
-     * by default: velocity and gyro do better) and teaches fc_error what it disagrees by */
-    const bool aided = stab_velocity_fresh(s, now_us);
-    est_link_error(q_then, roll, pitch, s->fc_error, aided ? MODEL_LINK_GAIN_WITH_VELOCITY : MODEL_LINK_GAIN, c, err);
+    /* the whole correction (gain 1), scaled below: c = (1 + cos, k (axis sin)) is linear in k */
+    est_link_error(q_then, roll, pitch, s->fc_error, 1.0f, c, err);
     if (!(c[0] > 1e-6f)) {   /* c[0] = 1 + cos(disagreement): ~180 deg has no rotation axis */
         return refuse(&s->link, STAB_LINK_OPPOSITE);
     }
+    hear(&s->link, heard, seq, stamp_us, now_us, &tm);
+    /* The gate: |err| is the sine of the disagreement (under 90 deg: c[0] > 1), against
+     * gate_sigmas x hypot(the flight controller's spread, the estimate's drift) */
+    const float sin2 = err[0] * err[0] + err[1] * err[1] + err[2] * err[2];
+    const float drift = drift_gate(s, now_us);
+    const float gate = fminf(sqrtf(MODEL_GATE_ATTITUDE * MODEL_GATE_ATTITUDE + drift * drift), GATE_ATTITUDE_WIDEST);
+    const float sin_gate = gate * (1.0f - gate * gate * (1.0f / 6.0f));   /* sin, 1 % low at 1 rad */
+    why = judge(&s->link, c[0] > 1.0f && sin2 <= sin_gate * sin_gate, now_us);
+    if (why != STAB_LINK_ACCEPTED) return refuse(&s->link, why);
+    /* with the velocity fresh too, the drone's attitude corrects with gains of their own (none
+     * by default: velocity and gyro do better) and teaches fc_error what it disagrees by. The
+     * gain is per message, so messages closer than a tick share one (several in a tick do
+     * what one does), and one message turns the estimate by at most correction_max_deg. */
+    const bool aided = stab_velocity_fresh(s, now_us);
+    float k = aided ? MODEL_LINK_GAIN_WITH_VELOCITY : MODEL_LINK_GAIN;
+    if (heard) k *= fminf((float)(stamp_us - last_stamp) * (1.0f / (float)MODEL_TICK_US), 1.0f);
+    if (k * k * sin2 > MODEL_CORRECTION_MAX_SIN * MODEL_CORRECTION_MAX_SIN) k = MODEL_CORRECTION_MAX_SIN / sqrtf(sin2);
+    c[1] *= k;
+    c[2] *= k;
+    const float left = (1.0f - k) * sqrtf(sin2);   /* (sin ~ angle within the gate) */
     est_quat_rotate_left(c, s->quat.q);
     /* the history takes the same level-frame correction: the next message compares with it */
     for (unsigned n = 0; n < s->hist_len; ++n) est_quat_rotate_left(c, s->hist_q[n]);
@@ -279,13 +402,14 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
     if (aided && fresh) {
         /* err x u_fc is how far the corrected up of the flight controller is off: fc_error
          * moves by err to close it, at fc_error_gain per second of the drone's time */
-        const float h = fminf((float)(stamp_us - s->link.stamp_us) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+        const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
         float learn[3];
         for (int i = 0; i < 3; ++i) learn[i] = h * MODEL_FC_ERROR_GAIN * err[i];
         move_fc_error(s, learn);
     }
     est_quat_up(s->quat.q, s->up);
-    take(&s->link, seq, stamp_us, now_us, offset, delay);
+    take(&s->link, now_us);
+    corrected(s, now_us, left);
     return STAB_LINK_ACCEPTED;
 }
 
@@ -298,31 +422,63 @@ static void shift_velocity(stab_t *s, const float e[3], float k)
     }
 }
 
+/* The velocity estimate restarted on a message: no tilt is learnt from it. */
+static void restart_velocity(stab_t *s, const float e[3])
+{
+    shift_velocity(s, e, 1.0f);
+    s->vel_restarts++;
+}
+
+/* The square of the velocity gate (m/s, on the innovation's length): gate_sigmas x the
+ * odometry's spread, and the IMU's velocity error that the tilt's spread (the flight
+ * controller's, as the estimate's own, plus its drift) makes: g times it over the velocity
+ * correction's time constant (1 / k_v). */
+static float velocity_gate2(const stab_t *s, uint32_t now_us)
+{
+    const float tilt = MODEL_GATE_VELOCITY_PER_RAD * (MODEL_GATE_ATTITUDE + drift_gate(s, now_us));
+    return MODEL_GATE_VELOCITY * MODEL_GATE_VELOCITY + tilt * tilt;
+}
+
 stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_us, const float v_level[3],
                                        uint32_t now_us)
 {
-    const bool fresh = stab_velocity_fresh(s, now_us);
-    uint32_t offset = 0u, delay = 0u;
+    const bool heard = heard_lately(&s->vel, now_us);
+    const uint32_t last_stamp = s->vel.stamp_us;
+    timing_t tm = { 0u, 0u, 0u };
     float q_then[4], v_then[3], e[3], turn[3];
     if (!MODEL_DRONE_VELOCITY || !MODEL_ESTIMATOR_QUATERNION) return refuse(&s->vel, STAB_LINK_OFF);
     for (int i = 0; i < 3; ++i) {
         if (!(fabsf(v_level[i]) <= VELOCITY_MAX)) return refuse(&s->vel, STAB_LINK_NOT_FINITE);   /* NaN too */
     }
-    stab_link_status_t why = admit(&s->vel, fresh, seq, stamp_us, now_us, &offset, &delay);
-    if (why == STAB_LINK_ACCEPTED && !history_at(s, now_us - delay, q_then, v_then)) why = STAB_LINK_STALE;
+    s->vel.arrived_us = now_us;
+    stab_link_status_t why = admit(&s->vel, heard, seq, stamp_us, now_us, &tm);
+    if (why == STAB_LINK_AHEAD) distrust(&s->vel, now_us);
+    if (why == STAB_LINK_ACCEPTED && !history_at(s, now_us - tm.delay, q_then, v_then)) why = STAB_LINK_STALE;
     if (why != STAB_LINK_ACCEPTED) return refuse(&s->vel, why);
+    hear(&s->vel, heard, seq, stamp_us, now_us, &tm);
     est_vel_innovation(q_then, v_level, s->rate, v_then, e, turn);
     bool jump = false;   /* the odometry's own velocity stepped (a reset or a switch of source) */
     for (int i = 0; i < 3; ++i) {
         jump = jump || !(fabsf(v_level[i] - s->vel_last[i]) <= VELOCITY_JUMP);
         s->vel_last[i] = v_level[i];
     }
-    if (!fresh || jump) {
-        shift_velocity(s, e, 1.0f);   /* (re)start on the measurement: no tilt from a jump */
-        s->vel_restarts++;
-    } else {
-        /* gains per second, over the drone's time since the previous message */
-        const float h = fminf((float)(stamp_us - s->vel.stamp_us) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+    if (!heard && !s->vel.rejected) {   /* the first after a silence: the estimate starts on it */
+        restart_velocity(s, e);
+        take(&s->vel, now_us);
+        return STAB_LINK_ACCEPTED;
+    }
+    /* gains per second, over the drone's time since the previous message */
+    const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+    const bool agrees = heard && !jump && e[0] * e[0] + e[1] * e[1] + e[2] * e[2] <= velocity_gate2(s, now_us);
+    why = judge(&s->vel, agrees, now_us);
+    if (why != STAB_LINK_ACCEPTED) {
+        /* a jump restarts the estimate; a dropped stream keeps the IMU's velocity on the
+         * drone's (restarted where it disagrees), so the two can be compared: no tilt taken */
+        if (!agrees && (jump || s->vel.rejected)) restart_velocity(s, e);
+        else if (s->vel.rejected) shift_velocity(s, e, h * MODEL_VEL_K_V);
+        return refuse(&s->vel, why);
+    }
+    {
         float d[3];
         shift_velocity(s, e, h * MODEL_VEL_K_V);
         for (int i = 0; i < 3; ++i) d[i] = h * MODEL_VEL_K_T * turn[i];
@@ -343,7 +499,8 @@ stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_u
         }
         est_quat_up(s->quat.q, s->up);
     }
-    take(&s->vel, seq, stamp_us, now_us, offset, delay);
+    take(&s->vel, now_us);
+    corrected(s, now_us, 0.0f);
     return STAB_LINK_ACCEPTED;
 }
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import struct
 from typing import NamedTuple, Tuple
 
-from .message_table import FAULTS, REFUSALS, RESET_CAUSES, STATES
+from .message_table import FAULTS, REFUSALS, RESET_CAUSES, SOURCES, STATES
 from .message_table import MESSAGES as _TABLE
 
 class Message(NamedTuple):
@@ -59,6 +59,11 @@ def decode(payload: bytes) -> tuple[str, dict]:
 def fault_names(bits: int) -> list[str]:
     """The names of the heartbeat fault bits set in `bits`, lowest first."""
     return [name for i, (name, _) in enumerate(FAULTS) if bits >> i & 1]
+
+
+def source_names(bits: int) -> list[str]:
+    """What corrects the attitude estimate: the names of the heartbeat's estimate_sources bits."""
+    return [name for i, (name, _) in enumerate(SOURCES) if bits >> i & 1]
 
 
 def state_name(value: int) -> str:
