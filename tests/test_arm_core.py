@@ -7,6 +7,7 @@ Oracles: the heartbeat's written fields and units (mm and ms on the wire, m and 
 board's own counters (the SITL's app state), the documented refusal and fault names."""
 from __future__ import annotations
 
+import math
 import threading
 import time
 
@@ -70,11 +71,19 @@ def heartbeat(**changes):
 def test_a_status_is_the_heartbeat_in_si_units_and_names():
     refusal = [name for name, _ in messages.REFUSALS].index("no_route")
     hb = heartbeat(set_x=60.0, set_y=-20.0, set_z=-120.0, uptime_ms=1500, refusal=refusal, faults=0b101,
-                   q1=0.1, q2=0.2, q3=-0.3, enabled=1, last_fault=3)
+                   q1=0.1, q2=0.2, q3=-0.3, p1=0.15, p2=float("nan"), p3=-0.25, enabled=1, last_fault=3,
+                   state=[name for name, _ in messages.STATES].index("limp"),
+                   servo1_voltage=111, servo2_temperature=41, servo1_load=512, servo2_load=1024 + 1023)
     s = status_of(hb, "imu")
     assert s["set_position"] == pytest.approx([0.060, -0.020, -0.120]) and s["uptime"] == 1.5
     assert s["refusal"] == "no_route" and s["fault_names"] == ["servo_timeout", "servo_config"]
-    assert s["joints"] == [0.1, 0.2, -0.3] and s["enabled"] is True and s["last_fault"] == "HardFault"
+    # the shafts as read (NaN: not read), the goals beside them
+    assert s["joints"][0] == 0.15 and math.isnan(s["joints"][1]) and s["joints"][2] == -0.25
+    assert s["goal_joints"] == [0.1, 0.2, -0.3] and s["enabled"] is True and s["last_fault"] == "HardFault"
+    assert s["state_name"] == "limp" and s["refusal_code"] == refusal
+    # AX-12A e-manual: Present Voltage in 0.1 V; Present Load 0..1023 of the maximum torque, +1024 clockwise
+    assert s["servo_voltage"] == [11.1, 0.0, 0.0] and s["servo_temperature"] == [0.0, 41.0, 0.0]
+    assert s["servo_load"] == pytest.approx([512 / 1023, -1.0, 0.0])
     assert status_of(heartbeat(), "drone")["refusal"] == "" and status_of(heartbeat(), "drone")["last_fault"] == ""
     assert s["velocity_source"] == "none" and status_of(hb, "drone", "drone")["velocity_source"] == "drone"
 
@@ -88,13 +97,18 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     assert statuses and statuses[-1]["set_position"] == pytest.approx([0.060, 0.020, -0.120], abs=1e-6)
     before = sitl.board.app.drone_attitudes
     c.attitude(0.01, -0.02, None, sitl.clock())
-    assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_attitudes > before)   # forwarded while fresh
+    assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_attitudes > before)
+    wait_simulated(sitl, 0.15)                                          # loop steps while it is fresh
+    assert sitl.board.app.drone_attitudes == before + 1                 # one stampless measurement: one frame
+    unstamped = [text for _, text in log.lines if "carry no stamp" in text]
+    assert len(unstamped) == 1 and "stamped on arrival" in unstamped[0]
     assert ("info", f"arm: forwarding the drone's attitude from {c.attitude_topic} to the board") in log.lines
     mark = len(log.lines)
     for _ in range(10):                                                 # kept fresh, no velocity
         c.attitude(0.01, -0.02, None, sitl.clock())
         wait_simulated(sitl, 0.04)
     assert not [text for _, text in log.lines[mark:] if "no attitude" in text]
+    assert len([text for _, text in log.lines if "carry no stamp" in text]) == 1     # said once
     before = sitl.board.app.drone_velocities
     c.velocity((0.5, -0.25, 0.0), None, sitl.clock())
     assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_velocities > before)

@@ -149,8 +149,8 @@ def test_version_is_the_package_version():
     proc = uavarm("--version")
     out, err = finished(proc)
     assert proc.returncode == 0 and out.startswith(f"uavarm {version} ")
-    # app.h: APP_FIRMWARE_VERSION 0x000600u, 0.6.0
-    assert "(firmware 0.6.0)" in out
+    # app.h: APP_FIRMWARE_VERSION 0x000700u, 0.7.0
+    assert "(firmware 0.7.0)" in out
 
 
 def test_codegen_help_names_the_command(capsys):

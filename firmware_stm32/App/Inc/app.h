@@ -69,7 +69,7 @@ extern "C" {
 #endif
 
 /* cffi:begin */
-#define APP_FIRMWARE_VERSION 0x000600u   /* 0.6.0: major, minor, patch bytes (the heartbeat's "firmware") */
+#define APP_FIRMWARE_VERSION 0x000700u   /* 0.7.0: major, minor, patch bytes (the heartbeat's "firmware") */
 #define APP_IMU_RETRY_MS 1000
 #define APP_CLOCK_STALL_TICKS 3        /* ticks in a row with the microsecond clock standing still */
 #define APP_IMU_STALE_TICKS 5          /* ticks without a usable sample before the IMU is faulty */
