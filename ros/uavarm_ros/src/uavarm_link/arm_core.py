@@ -1,6 +1,6 @@
 """What the drone-side node does, without ROS: the port (opened, lost and reopened every
-second), each loop step (the heartbeats in; the drone's attitude and velocity, or a keep-alive,
-out), the
+second), each loop step (the heartbeats in; the drone's attitude and velocity, each
+measurement once, a streamed target, or a keep-alive, out), the
 status a heartbeat gives, and commands answered once a heartbeat confirms them. A board that
 restarts while enabled after a watchdog reset or a fault comes up limp: an error, and (unless
 reenable is off) enable is sent again so that it parks; it is never engaged again by itself. The ROS 1

@@ -16,11 +16,20 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   ("drone") or the board runs on its own IMU only ("imu"), and `velocity_source` whether the
   drone's velocity is ("drone" or "none"; each change is logged). New fault
   bits (for example link_lost when the arm parked after a silent link) are logged as warnings.
+- `joint_states` (sensor_msgs/JointState, robot_state_publisher's): the shafts of each
+  heartbeat as the servos' status reads found them, only the joints read (none while the arm
+  is disabled: its servos are unpowered), never a goal in their place; `~goal_joint_states`
+  the goals beside them.
+- `~target` (geometry_msgs/PointStamped): a stream of targets in any frame TF links to
+  `arm_base`, transformed there, levelled with the drone's roll and pitch and sent as the set
+  position, the latest one at most `~target_rate` (50) times a second (at most the board's
+  tick rate); the board's refusals come in `~status` as for the service.
 - the drone's attitude (`~attitude_topic`, default `estimation_manager/odom_main`, the MRS UAV
   System's estimated state; `~attitude_type`: nav_msgs/Odometry,
   sensor_msgs/Imu or geometry_msgs/QuaternionStamped): the orientation quaternion as Z-Y-X
-  roll and pitch, the latest one forwarded with ArmLink.send_attitude at `~attitude_rate` Hz
-  (default 100, at least 50) while it is fresher than `~attitude_timeout` s. The board counts
+  roll and pitch, each message forwarded once with ArmLink.send_attitude by the loop, which
+  runs at `~attitude_rate` Hz (default 100, at least 50), while it is fresher than
+  `~attitude_timeout` s; a message stamped zero is stamped on arrival (logged once). The board counts
   it as keep-alive, and a firmware built with the link estimator fuses it. With no fresh attitude and `~keep_alive` true, an
   engaged arm is kept alive by repeating its set position every `~keep_alive_period` s.
 - the drone's velocity, from the same nav_msgs/Odometry (`~velocity`, default true): the
