@@ -135,3 +135,68 @@ def test_a_port_that_is_not_there_is_retried_with_one_error():
         c.step(100.0 + 1.5 * k)                       # past the reopen period each time
     assert c.link is None and [level for level, _ in log.lines] == ["error"]
     assert c.enable(True) == (False, f"no link to the board: {c.link_error}")
+
+
+class StubLink:
+    """What a step uses of SharedLink, recording what it sends."""
+    silence, engaged, last_sent = 1.5, False, 0.0
+
+    def __init__(self):
+        self.sent = []
+
+    def poll(self):
+        return []
+
+    def send(self, name, **fields):
+        self.sent.append((name, fields))
+
+    def send_attitude(self, roll, pitch, stamp_us):
+        self.sent.append(("drone_attitude", {"roll": roll, "pitch": pitch, "stamp_us": stamp_us}))
+
+    def send_velocity(self, vx, vy, vz, stamp_us):
+        self.sent.append(("drone_velocity", {"stamp_us": stamp_us}))
+
+
+def stub_core(**kw):
+    log = Log()
+    c = ArmCore("/dev/stub", 115200, log, lambda s: None, **kw)
+    c.link = StubLink()
+    return c, log
+
+
+def test_a_target_stream_sends_the_latest_point_at_most_target_rate_times_a_second():
+    c, log = stub_core(target_rate=50.0)
+    c.target(0.060, 0.020, -0.120)
+    c.step(10.000)
+    c.target(0.061, 0.020, -0.120)
+    c.step(10.010)                                    # 10 ms after: held back
+    c.target(0.062, 0.020, -0.120)                   # the latest replaces it
+    c.step(10.020)
+    c.step(10.030)                                    # nothing new
+    sent = [f for name, f in c.link.sent if name == "set_position"]
+    assert sent == [{"x": 60.0, "y": 20.0, "z": -120.0}, {"x": 62.0, "y": 20.0, "z": -120.0}]
+    c.target(math.nan, 0.0, -0.1)                     # never sent
+    c.target(60.0, 20.0, -120.0)                      # millimetres by mistake: sent, refused by the board, hinted
+    c.step(10.100)
+    assert [f for name, f in c.link.sent if name == "set_position"][-1] == {"x": 60000.0, "y": 20000.0, "z": -120000.0}
+    assert any("not finite" in text for _, text in log.lines)
+    assert any("millimetres? the services and ~target take metres" in text for _, text in log.lines)
+    # engaged, no attitude, the stream stopped: the keep-alive repeats the last point streamed
+    # (the last heartbeat may predate it)
+    c.link.engaged, c.link.last_sent = True, 0.0
+    c.step(11.0)
+    assert c.link.sent[-1] == ("set_position", {"x": 60000.0, "y": 20000.0, "z": -120000.0})
+    with pytest.raises(ValueError, match="tick rate"):
+        stub_core(target_rate=150.0)
+
+
+def test_each_drone_measurement_is_sent_once_and_a_stampless_one_stamped_on_arrival():
+    c, log = stub_core()
+    c.attitude(0.01, -0.02, None, 20.0)
+    for k in range(5):
+        c.step(20.0 + 0.01 * k)                       # five steps while it is fresh
+    c.attitude(0.01, -0.02, 123456, 20.05)            # stamped: its own stamp
+    c.step(20.06)
+    attitudes = [f for name, f in c.link.sent if name == "drone_attitude"]
+    assert [f["stamp_us"] for f in attitudes] == [20_000_000, 123456]
+    assert [level for level, text in log.lines if "carry no stamp" in text] == ["warn"]
