@@ -96,6 +96,24 @@ def test_the_sign_conventions_written_in_the_docs_hold():
     assert abs(frd.as_euler("ZYX")[1] + a) < 1e-12
 
 
+def test_the_status_constants_are_the_firmwares_codes():
+    """ArmStatus's STATE_, REFUSAL_ and FAULT_ constants, as genpy builds the message class,
+    are the firmware's MSG_STATE_, MSG_REFUSAL_ and MSG_FAULT_ defines (generated/messages.h),
+    each one of them and no other."""
+    import re
+    require_ros()
+    from uavarm.link.ros_node import load_interfaces
+    msg, _ = load_interfaces()
+    header = (Path(__file__).resolve().parents[1] / "generated" / "messages.h").read_text()
+    firmware = {name: int(value, 0) for name, value in
+                re.findall(r"#define MSG_((?:STATE|REFUSAL|FAULT)_[A-Z0-9_]+) (0x[0-9A-Fa-f]+|\d+)u?\b", header)
+                if not name.endswith("_COUNT")}                 # (how many there are, not a code)
+    ros = {name: getattr(msg.ArmStatus, name) for name in dir(msg.ArmStatus)
+           if re.fullmatch(r"(STATE|REFUSAL|FAULT)_[A-Z0-9_]+", name)}
+    assert len(firmware) == len(messages.STATES) + len(messages.REFUSALS) + len(messages.FAULTS)
+    assert ros == firmware
+
+
 # ------------------------------------------------------------------ fixtures
 
 @pytest.fixture(scope="module")
