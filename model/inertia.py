@@ -3,8 +3,9 @@ centre of mass and inertia tensor, from the model file's [masses] with a simple 
 each part's shape. SI units (kg, m, kg m^2), each link in its URDF frame: the joint at the
 origin, the link hanging along -z at zero angle.
 
-The same solids are the links' collision shapes. Shapes: an AX-12A is a solid box of its e-manual's 32 x 50 x 40 mm; a link's brackets a
-solid rod of the link's length and the URDF's visual radius; the tool a solid ball.
+Shapes: an AX-12A is a solid box of its e-manual's 32 x 50 x 40 mm; a link's brackets a
+solid rod of the link's length and the URDF's visual radius, centred on their centre of
+mass; the tool a solid ball. The same solids are the links' collision shapes.
 """
 from __future__ import annotations
 
