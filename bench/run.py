@@ -119,7 +119,7 @@ def tick_bench_build(gen_dir=generated.GENERATED):
     """bench/tick_bench.c with every application and generated source, for the M4 counter."""
     sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
     incs = [f"-I{d}" for d in (gen_dir, firmware.APP / "Inc")]
-    return m4.build(sources, ["bench_run", "bench_message"], cflags=target.M4_CFLAGS + incs)
+    return m4.build(sources, ["bench_run", "bench_message", "bench_pass"], cflags=target.M4_CFLAGS + incs)
 
 
 def whole_tick(m):
@@ -169,6 +169,15 @@ def whole_tick(m):
     if messages:
         print("\nOne drone message fused by the stabiliser (main loop, between ticks; est. cycles): "
               + ", ".join(messages) + ". Both streams are fresh in the ticks above, as in flight.")
+    passes = []
+    for what, name in ((1, "a new set_position received and handled, engaged (route checked)"),
+                       (2, "a heartbeat packed, framed and written")):
+        runs = [gen.call("bench_pass", [m4.Arr("int32", raw), m4.U32(N_TICKS), m4.U32(what), m4.U32(with_)],
+                         ret="int") for with_ in (0, 1)]
+        if not all(r.ret for r in runs):
+            raise SystemExit(f"tick bench: the pass with {name} did not do it")
+        passes.append(f"{name} {runs[1].cycles - runs[0].cycles}")
+    print("\nOne main-loop pass's extra work, outside the tick (est. cycles): " + "; ".join(passes) + ".")
 
 
 def tick_runs(gen, raw):

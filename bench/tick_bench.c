@@ -225,3 +225,23 @@ int bench_message(const int32_t *raw, uint32_t n, uint32_t which, uint32_t secon
     stab_link_status_t next = second ? drone_message(which, 2) : STAB_LINK_ACCEPTED;
     return ok && first == STAB_LINK_ACCEPTED && next == STAB_LINK_ACCEPTED;
 }
+
+/* The cost of one main-loop pass with (with = 1) or without (0) one piece of its work, after
+ * the setup and n ticks (what 1: a new set_position received, decoded and handled while
+ * engaged, the route to it checked; 2: a heartbeat packed, framed and written). bench/run.py
+ * takes the difference. */
+int bench_pass(const int32_t *raw, uint32_t n, uint32_t what, uint32_t with)
+{
+    int ok = setup();
+    for (uint32_t k = 0; k < n; ++k) period(raw + 6 * k, true);
+    app.last_heartbeat_us = now - (what == 2 && with ? MODEL_HEARTBEAT_MS * 1000u : 0u);
+    const uint32_t sent = app.heartbeats_sent;
+    if (what == 1 && with) {
+        uint8_t payload[MSG_SET_POSITION_SIZE];
+        const msg_set_position_t set = { 55.0f, 15.0f, -125.0f };
+        frame(payload, msg_set_position_pack(&set, payload, sizeof payload));
+    }
+    app_poll(&app);
+    if (what == 1) return ok && app.engaged && app.set_position[0] == (with ? 55.0f : 60.0f);
+    return ok && app.heartbeats_sent - sent == (with ? 1u : 0u);
+}

@@ -19,7 +19,8 @@ from pathlib import Path
 import jinja2
 import sympy as sp
 
-from ..model import attitude, collision, config, filters, kinematics, messages, pose_tolerance, quaternion, servo, swept, velocity
+from ..model import (attitude, collision, config, filters, inertia, kinematics, messages, pose_tolerance, quaternion,
+                     servo, swept, velocity)
 from . import approx, board_ioc
 from .remember import remembered
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
@@ -338,7 +339,13 @@ def urdf_context(m: config.Model):
                "length": metres(length) if k else "", "half_length": metres(length / 2)}
               for k, (n, p, c, d, lim, length) in enumerate(zip(names, parents, links, drops, m.limits,
                                                                 (0.0, m.L2, m.L3)))]
-    return {"joints": joints, "offset": [metres(v) for v in m.mount_offset], "l1": metres(m.L1),
+    xyz = lambda v: " ".join(f"{c:.6g}" for c in v)
+    bodies = {name: {"mass": f"{b.kg:.6g}", "centre": xyz(b.centre),
+                     **{f"i{a}{b_}": f"{b.inertia[i][j]:.6g}" for i, a in enumerate("xyz")
+                        for j, b_ in enumerate("xyz") if j >= i},
+                     "shapes": [{"centre": xyz(p.centre), "geometry": p.geometry} for p in parts]}
+              for (name, b), parts in zip(inertia.link_bodies(m).items(), inertia.link_parts(m).values())}
+    return {"joints": joints, "bodies": bodies, "offset": [metres(v) for v in m.mount_offset], "l1": metres(m.L1),
             "half_l1": metres(-m.L1 / 2), "l3": metres(m.L3),
             "velocity": f"{float(servo.rad_per_s(servo.speed_units(m.working_speed_rpm))):.6g}"}
 
@@ -492,8 +499,10 @@ def fastmath_context():
 
 URDF = "uavarm_arm.urdf"
 MESSAGE_TABLE = "message_table.py"
+ARM_STATUS = "ArmStatus.msg"
 # the ROS package carries these too, so it builds and runs in any catkin workspace
-ROS_COPIES = {URDF: Path("ros/uavarm_ros/urdf"), MESSAGE_TABLE: Path("ros/uavarm_ros/src/uavarm_link")}
+ROS_COPIES = {URDF: Path("ros/uavarm_ros/urdf"), MESSAGE_TABLE: Path("ros/uavarm_ros/src/uavarm_link"),
+              ARM_STATUS: Path("ros/uavarm_ros/msg")}
 
 OUTPUTS = {
     "fastmath.h": "fastmath.h.j2",
@@ -511,6 +520,7 @@ OUTPUTS = {
     "messages.c": "messages.c.j2",
     URDF: "arm.urdf.j2",
     MESSAGE_TABLE: "message_table.py.j2",
+    ARM_STATUS: "ArmStatus.msg.j2",
 }
 
 

@@ -69,6 +69,7 @@ _KEYS_BY_TABLE = {
     "imu": "sample_rate i2c_address accel_range_g gyro_range_dps dlpf_bandwidth mounting_rpy "
            "accel_bias accel_scale gyro_bias_dps gyro_scale gyro_cross_axis",
     "mount": "offset",
+    "masses": "servo upper_arm upper_arm_com forearm forearm_com end_effector end_effector_com",
     "filters.accel": "cutoff order", "filters.gyro": "cutoff order",
     "estimator": "kind complementary_gyro_weight accel_gain bias_gain align_accel_gain align_bias_gain "
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
@@ -155,6 +156,7 @@ class Model:
     complementary_gyro_weight: float
     estimator: "Estimator"
     motion: "Motion"
+    masses: "Masses"
 
 
 # Plausible calibration results (MPU-6050 datasheet: zero-g offset +-80 mg on X and Y,
@@ -199,6 +201,23 @@ class Motion:
     axis_release_radius: float     # mm: ... and follows it again beyond this
     follow_window_deg: float       # deg: following a tilt turns joint 1 at most this far from its goal
     stretch_margin: float          # mm: the arm stops this short of full stretch
+
+
+@dataclass(frozen=True)
+class Masses:
+    """[masses]: the arm's moving parts (g) and where each one's centre of mass sits (mm from
+    its link's joint, along the link): the URDF's inertials, the simulator's gravity torques."""
+    servo: float                   # each AX-12A
+    upper_arm: float               # the upper arm's brackets and screws ...
+    upper_arm_com: float           # ... their centre, from the shoulder
+    forearm: float                 # the forearm's, from the elbow
+    forearm_com: float
+    end_effector: float            # the tool, from the elbow
+    end_effector_com: float
+
+
+MASS_MIN_G = 1.0         # a part lighter than a gram is a mass in kilograms by mistake
+MASS_MAX_G = 2000.0      # four times what an AX-12A holds out at the arm's reach
 
 
 ESTIMATOR_KINDS = ("complementary", "quaternion")
@@ -426,6 +445,7 @@ def parse(raw: bytes, path: Path) -> Model:
         complementary_gyro_weight=r.number("estimator.complementary_gyro_weight", lo=0.0, hi=1.0),
         estimator=_estimator(r, sample_rate),
         motion=_motion(r),
+        masses=_masses(r, _link(r, "geometry.L2"), _link(r, "geometry.L3")),
     )
     _check_servo_travel(r, model)
     _check_poses_within_tolerance(r, model)
@@ -543,6 +563,27 @@ def _imu_calibration(r: _Reader) -> ImuCalibration:
         gyro_scale=vector("imu.gyro_scale", (1.0, 1.0, 1.0), *GYRO_SCALE_RANGE, "scale factors"),
         gyro_cross_axis=cross_axis(),
     )
+
+
+def _masses(r: _Reader, L2: float, L3: float) -> Masses:
+    def grams(name):
+        key = f"masses.{name}"
+        value = r.number(key, positive=True, hi=MASS_MAX_G)
+        if value < MASS_MIN_G:
+            raise r.fail(key, f"{value} g is below {MASS_MIN_G:g} g: masses are in grams (kilograms by mistake?)")
+        return value
+
+    def centre(name, length, link, joint):
+        key = f"masses.{name}"
+        value = r.number(key)
+        if not 0.0 <= value <= length:
+            raise r.fail(key, f"must lie on the {link}: 0 to {length} mm from the {joint}, got {value}")
+        return value
+    return Masses(servo=grams("servo"),
+                  upper_arm=grams("upper_arm"), upper_arm_com=centre("upper_arm_com", L2, "upper arm (L2)", "shoulder"),
+                  forearm=grams("forearm"), forearm_com=centre("forearm_com", L3, "forearm (L3)", "elbow"),
+                  end_effector=grams("end_effector"),
+                  end_effector_com=centre("end_effector_com", L3, "forearm (L3)", "elbow"))
 
 
 def _offset(r: _Reader, key: str) -> tuple[float, float, float]:

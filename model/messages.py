@@ -101,12 +101,15 @@ MESSAGES = (
         ("servo2_voltage", "u8"), ("servo2_temperature", "u8"), ("servo2_load", "u16"),
         ("servo3_voltage", "u8"), ("servo3_temperature", "u8"), ("servo3_load", "u16"),
         ("lagging_joints", "u8"), ("estimate_sources", "u8"),
-    ), "every 500 ms: sequence number and uptime, enabled (0 off, 1 on, 2 on limp for calibration: "
-       "enable 2, the bench), state, set position, joint angles (rad), fault flags, "
+        ("p1", "f32"), ("p2", "f32"), ("p3", "f32"),
+    ), "every link.heartbeat_period: sequence number and uptime, enabled (0 off, 1 on, 2 on limp for calibration: "
+       "enable 2, the bench), state, set position, the joints' goals q1..q3 (rad, the last commanded), fault flags, "
        "counters, the bus and reset state (with the exception that halted the firmware before it), firmware and model identity, each servo's supply (0.1 V), "
        "temperature (deg C) and load (AX-12A units, bit 10 = direction), the joints whose shaft fell "
-       "behind its goal since the last heartbeat (bit 0 = joint 1; faults.servo_lagging), and what corrects "
-       "the attitude estimate (estimate_sources: SOURCES bits)"),
+       "behind its goal since the last heartbeat (bit 0 = joint 1; faults.servo_lagging), what corrects "
+       "the attitude estimate (estimate_sources: SOURCES bits), "
+       "and the shafts p1..p3 (rad) as the latest status reads found them, NaN where none succeeded "
+       "(the supply off, a servo not answering)"),
     Message("imu_raw", 0x21, "to_drone", (
         ("seq", "u16"), ("stamp_us", "u32"),
         ("ax", "i16"), ("ay", "i16"), ("az", "i16"), ("temperature", "i16"),

@@ -60,8 +60,9 @@ def near_park(board, tol=None):
     return all(abs(s - p) <= tol for s, p in zip(shaft_units(board), PARK_UNITS))
 
 
-def hb_q_close(hb, q, tol=UNIT_RAD):
-    return all(abs(hb[f"q{j + 1}"] - q[j]) <= tol + 1e-6 for j in range(3))
+def hb_q_close(hb, q, tol=UNIT_RAD, field="p"):
+    """The heartbeat's shafts (p1..p3) or goals (field "q") within tol of q."""
+    return all(abs(hb[f"{field}{j + 1}"] - q[j]) <= tol + 1e-6 for j in range(3))
 
 
 def enabled(board=None, **kw):
@@ -291,7 +292,8 @@ def test_heartbeat_period_fields_and_counters():
         assert all(math.isfinite(hb[k]) for k in ("set_x", "set_y", "set_z", "q1", "q2", "q3"))
         assert (hb["enabled"], hb["engaged"], hb["servo_timeouts"]) == (0, 0, 0)
         assert hb["faults"] == 0
-        assert hb_q_close(hb, PARK_Q, 1e-6), "disabled: the joints last commanded"
+        assert hb_q_close(hb, PARK_Q, 1e-6, "q"), "disabled: the goals last commanded"
+        assert all(math.isnan(hb[k]) for k in ("p1", "p2", "p3")), "disabled: no shaft read, none reported"
 
 
 # ---------------------------------------------------------------- stabilisation

@@ -7,6 +7,7 @@ Oracles: the heartbeat's written fields and units (mm and ms on the wire, m and 
 board's own counters (the SITL's app state), the documented refusal and fault names."""
 from __future__ import annotations
 
+import math
 import threading
 import time
 
@@ -70,13 +71,24 @@ def heartbeat(**changes):
 def test_a_status_is_the_heartbeat_in_si_units_and_names():
     refusal = [name for name, _ in messages.REFUSALS].index("no_route")
     hb = heartbeat(set_x=60.0, set_y=-20.0, set_z=-120.0, uptime_ms=1500, refusal=refusal, faults=0b101,
-                   q1=0.1, q2=0.2, q3=-0.3, enabled=1, last_fault=3)
+                   q1=0.1, q2=0.2, q3=-0.3, p1=0.15, p2=float("nan"), p3=-0.25, enabled=1, last_fault=3,
+                   state=[name for name, _ in messages.STATES].index("limp"),
+                   servo1_voltage=111, servo2_temperature=41, servo1_load=512, servo2_load=1024 + 1023)
     s = status_of(hb, "imu")
     assert s["set_position"] == pytest.approx([0.060, -0.020, -0.120]) and s["uptime"] == 1.5
     assert s["refusal"] == "no_route" and s["fault_names"] == ["servo_timeout", "servo_config"]
-    assert s["joints"] == [0.1, 0.2, -0.3] and s["enabled"] is True and s["last_fault"] == "HardFault"
+    # the shafts as read (NaN: not read), the goals beside them
+    assert s["joints"][0] == 0.15 and math.isnan(s["joints"][1]) and s["joints"][2] == -0.25
+    assert s["goal_joints"] == [0.1, 0.2, -0.3] and s["enabled"] is True and s["last_fault"] == "HardFault"
+    assert s["state_name"] == "limp" and s["refusal_code"] == refusal
+    # AX-12A e-manual: Present Voltage in 0.1 V; Present Load 0..1023 of the maximum torque, +1024 clockwise
+    assert s["servo_voltage"] == [11.1, 0.0, 0.0] and s["servo_temperature"] == [0.0, 41.0, 0.0]
+    assert s["servo_load"] == pytest.approx([512 / 1023, -1.0, 0.0])
     assert status_of(heartbeat(), "drone")["refusal"] == "" and status_of(heartbeat(), "drone")["last_fault"] == ""
     assert s["velocity_source"] == "none" and status_of(hb, "drone", "drone")["velocity_source"] == "drone"
+    # model/messages.py SOURCES: bit 0 the accelerometer, 1 the drone's attitude, 2 its velocity
+    assert s["estimate_sources"] == [] and status_of(heartbeat(estimate_sources=0b110), "drone")["estimate_sources"] \
+        == ["drone_attitude", "drone_velocity"]
 
 
 def test_the_core_drives_the_board_and_forwards_the_attitude(core):
@@ -88,13 +100,18 @@ def test_the_core_drives_the_board_and_forwards_the_attitude(core):
     assert statuses and statuses[-1]["set_position"] == pytest.approx([0.060, 0.020, -0.120], abs=1e-6)
     before = sitl.board.app.drone_attitudes
     c.attitude(0.01, -0.02, None, sitl.clock())
-    assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_attitudes > before)   # forwarded while fresh
+    assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_attitudes > before)
+    wait_simulated(sitl, 0.15)                                          # loop steps while it is fresh
+    assert sitl.board.app.drone_attitudes == before + 1                 # one stampless measurement: one frame
+    unstamped = [text for _, text in log.lines if "carry no stamp" in text]
+    assert len(unstamped) == 1 and "stamped on arrival" in unstamped[0]
     assert ("info", f"arm: forwarding the drone's attitude from {c.attitude_topic} to the board") in log.lines
     mark = len(log.lines)
     for _ in range(10):                                                 # kept fresh, no velocity
         c.attitude(0.01, -0.02, None, sitl.clock())
         wait_simulated(sitl, 0.04)
     assert not [text for _, text in log.lines[mark:] if "no attitude" in text]
+    assert len([text for _, text in log.lines if "carry no stamp" in text]) == 1     # said once
     before = sitl.board.app.drone_velocities
     c.velocity((0.5, -0.25, 0.0), None, sitl.clock())
     assert wait_simulated(sitl, 1.0, lambda: sitl.board.app.drone_velocities > before)
@@ -121,3 +138,68 @@ def test_a_port_that_is_not_there_is_retried_with_one_error():
         c.step(100.0 + 1.5 * k)                       # past the reopen period each time
     assert c.link is None and [level for level, _ in log.lines] == ["error"]
     assert c.enable(True) == (False, f"no link to the board: {c.link_error}")
+
+
+class StubLink:
+    """What a step uses of SharedLink, recording what it sends."""
+    silence, engaged, last_sent = 1.5, False, 0.0
+
+    def __init__(self):
+        self.sent = []
+
+    def poll(self):
+        return []
+
+    def send(self, name, **fields):
+        self.sent.append((name, fields))
+
+    def send_attitude(self, roll, pitch, stamp_us):
+        self.sent.append(("drone_attitude", {"roll": roll, "pitch": pitch, "stamp_us": stamp_us}))
+
+    def send_velocity(self, vx, vy, vz, stamp_us):
+        self.sent.append(("drone_velocity", {"stamp_us": stamp_us}))
+
+
+def stub_core(**kw):
+    log = Log()
+    c = ArmCore("/dev/stub", 115200, log, lambda s: None, **kw)
+    c.link = StubLink()
+    return c, log
+
+
+def test_a_target_stream_sends_the_latest_point_at_most_target_rate_times_a_second():
+    c, log = stub_core(target_rate=50.0)
+    c.target(0.060, 0.020, -0.120)
+    c.step(10.000)
+    c.target(0.061, 0.020, -0.120)
+    c.step(10.010)                                    # 10 ms after: held back
+    c.target(0.062, 0.020, -0.120)                   # the latest replaces it
+    c.step(10.020)
+    c.step(10.030)                                    # nothing new
+    sent = [f for name, f in c.link.sent if name == "set_position"]
+    assert sent == [{"x": 60.0, "y": 20.0, "z": -120.0}, {"x": 62.0, "y": 20.0, "z": -120.0}]
+    c.target(math.nan, 0.0, -0.1)                     # never sent
+    c.target(60.0, 20.0, -120.0)                      # millimetres by mistake: sent, refused by the board, hinted
+    c.step(10.100)
+    assert [f for name, f in c.link.sent if name == "set_position"][-1] == {"x": 60000.0, "y": 20000.0, "z": -120000.0}
+    assert any("not finite" in text for _, text in log.lines)
+    assert any("millimetres? the services and ~target take metres" in text for _, text in log.lines)
+    # engaged, no attitude, the stream stopped: the keep-alive repeats the last point streamed
+    # (the last heartbeat may predate it)
+    c.link.engaged, c.link.last_sent = True, 0.0
+    c.step(11.0)
+    assert c.link.sent[-1] == ("set_position", {"x": 60000.0, "y": 20000.0, "z": -120000.0})
+    with pytest.raises(ValueError, match="tick rate"):
+        stub_core(target_rate=150.0)
+
+
+def test_each_drone_measurement_is_sent_once_and_a_stampless_one_stamped_on_arrival():
+    c, log = stub_core()
+    c.attitude(0.01, -0.02, None, 20.0)
+    for k in range(5):
+        c.step(20.0 + 0.01 * k)                       # five steps while it is fresh
+    c.attitude(0.01, -0.02, 123456, 20.05)            # stamped: its own stamp
+    c.step(20.06)
+    attitudes = [f for name, f in c.link.sent if name == "drone_attitude"]
+    assert [f["stamp_us"] for f in attitudes] == [20_000_000, 123456]
+    assert [level for level, text in log.lines if "carry no stamp" in text] == ["warn"]

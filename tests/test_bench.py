@@ -52,3 +52,16 @@ def test_a_run_that_parked_is_refused(tick_build):
     saturated = raw[:6] + [32767] * (6 * n)
     assert run(tick_build, raw, 1, n).ret == 1
     assert run(tick_build, saturated, 1, n).ret == 0
+
+
+def test_the_main_loop_passes_measured_do_their_work(tick_build):
+    """bench_pass (make bench's set_position and heartbeat figures): the pass with the work
+    does it (the set position taken engaged; one heartbeat more), the one without does not,
+    and the work costs something."""
+    raw = bench.tilting_imu(config.load(), N + 1)
+    for what in (1, 2):
+        without, with_ = (tick_build.call("bench_pass", [m4.Arr("int32", raw), m4.U32(N), m4.U32(what), m4.U32(w)],
+                                          ret="int") for w in (0, 1))
+        assert without.ret == 1 and with_.ret == 1
+        assert with_.cycles > without.cycles
+    print(f"\nheartbeat: {with_.cycles - without.cycles} est. cycles")

@@ -98,17 +98,20 @@ def in_workspace(ws, command: str, env=None, wait_for: str | None = None, until_
 
 def test_the_workspace_alone_brings_the_arm_up(launched):
     """From the built workspace and the system Python (no toolchain: `import uavarm` fails
-    there): joint states with the URDF's joint names, the end effector in TF below the drone's
+    there): the goals of the disabled arm, then its joint states once enabled, with the URDF's
+    joint names, the end effector in TF below the drone's
     body frame (MRS's uav1/fcu, the launch file's default parent), and the services answering
     (enable taken)."""
     ws, env, home = launched
     log = lambda: (home / "launch.out").read_text()[-3000:]          # noqa: E731
     out = in_workspace(ws, "/usr/bin/python3 -c 'import uavarm'", env)
     assert out.returncode != 0 and "No module named 'uavarm'" in out.stderr
-    out = in_workspace(ws, "rostopic echo -n 1 /uav1/joint_states", env, wait_for="arm_joint1")
+    out = in_workspace(ws, "rostopic echo -n 1 /uav1/arm/goal_joint_states", env, wait_for="arm_joint1")
     assert all(f"arm_joint{j}" in out.stdout for j in (1, 2, 3)), out.stdout + out.stderr + log()
     out = in_workspace(ws, "rosservice call /uav1/arm/enable true", env)
     assert "success: True" in out.stdout, out.stdout + out.stderr + log()
+    out = in_workspace(ws, "rostopic echo -n 1 /uav1/joint_states", env, wait_for="arm_joint1")   # the shafts, read
+    assert all(f"arm_joint{j}" in out.stdout for j in (1, 2, 3)), out.stdout + out.stderr + log()
     tf = ("import rospy, tf2_ros; rospy.init_node('tf_check', anonymous=True); b = tf2_ros.Buffer(); "
           "tf2_ros.TransformListener(b); t = b.lookup_transform('uav1/fcu', 'end_effector', rospy.Time(0), "
           "rospy.Duration(20)).transform.translation; print('EE', t.x, t.y, t.z)")
@@ -140,3 +143,19 @@ def test_the_node_is_python_3_8():
     out = subprocess.run([str(python38), "-c", check, str(LINK_PACKAGE.parent)], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0 and "(3, 8)" in out.stdout, out.stdout + out.stderr
 
+
+
+def test_the_docs_list_the_debian_packages_ci_installs():
+    """docs/ros.md's `apt-get install` line names exactly the ROS 1 packages .ci/run installs
+    (the loop over Debian packages there)."""
+    import re
+    ci = (ROOT / ".ci" / "run").read_text()
+    loop = re.search(r"for pkg in (.*?); do", ci, re.S)
+    assert loop is not None, ".ci/run: no `for pkg in ...; do` loop"
+    ci_packages = set(loop.group(1).replace("\\\n", " ").split())
+    docs = (ROOT / "docs" / "ros.md").read_text()
+    install = re.search(r"apt-get install (.*?)\n\n", docs, re.S)
+    assert install is not None, "docs/ros.md: no apt-get install line"
+    doc_packages = set(install.group(1).replace("\\\n", " ").split())
+    assert doc_packages == ci_packages, (f"only in docs/ros.md: {sorted(doc_packages - ci_packages)}; "
+                                         f"only in .ci/run: {sorted(ci_packages - doc_packages)}")

@@ -51,7 +51,7 @@ def wait_for(sitl, arm, cond, sim_seconds):
 
 
 def joints_deg(hb):
-    return np.degrees([hb["q1"], hb["q2"], hb["q3"]])
+    return np.degrees([hb["p1"], hb["p2"], hb["p3"]])
 
 
 def test_missing_port_is_a_clear_error():
@@ -103,7 +103,7 @@ def test_commands_through_the_pseudo_terminal(sitl):
 
         def at_target(hb):
             arm.keep_alive()
-            ee = arm_points(m, [hb["q1"], hb["q2"], hb["q3"]])[2]
+            ee = arm_points(m, [hb["p1"], hb["p2"], hb["p3"]])[2]
             return np.linalg.norm(ee - TARGET) <= FK_TOL_MM
         assert wait_for(sitl, arm, at_target, 3.0) is not None, "the set position was not reached"
 

@@ -141,6 +141,10 @@ HEARTBEAT_BY_HAND = bytes([
     0x60, 0x2B, 0x06, 0x05,             # servo2: 9.6 V, 43 deg C, load 0x0506
     0x61, 0x2C, 0x07, 0x06,             # servo3: 9.7 V, 44 deg C, load 0x0607
     0x05,                               # lagging_joints: joints 1 and 3
+    0x06,                               # estimate_sources: the drone's attitude and velocity
+    0x00, 0x00, 0x00, 0x3F,             # p1 0.5 (float32 0x3F000000)
+    0x00, 0x00, 0x00, 0xC0,             # p2 -2.0 (0xC0000000)
+    0x00, 0x00, 0x80, 0x3F,             # p3 1.0 (0x3F800000)
 ])
 HEARTBEAT_VALUES = dict(
     seq=0x0102, uptime_ms=0x03040506, enabled=1, engaged=0, unreachable=1, state=5, refusal=7, faults=0x0C01,
@@ -150,19 +154,20 @@ HEARTBEAT_VALUES = dict(
     reset_cause=2, last_fault=3, firmware=0x000300, model=0xBEEDD43E,
     servo1_voltage=95, servo1_temperature=42, servo1_load=0x0405,
     servo2_voltage=96, servo2_temperature=43, servo2_load=0x0506,
-    servo3_voltage=97, servo3_temperature=44, servo3_load=0x0607, lagging_joints=0x05)
+    servo3_voltage=97, servo3_temperature=44, servo3_load=0x0607, lagging_joints=0x05,
+    estimate_sources=0x06, p1=0.5, p2=-2.0, p3=1.0)
 
 
 def test_heartbeat_bytes_by_hand(gen):
     """The heartbeat laid out field by field by hand (id 0x20, then each field packed
-    little-endian in the documented order, 79 bytes): the C packs exactly these bytes, the C
+    little-endian in the documented order, 92 bytes): the C packs exactly these bytes, the C
     and the Python codec read them back as the values, the Python codec writes them."""
     ffi, lib = gen
-    assert len(HEARTBEAT_BY_HAND) == 79
+    assert len(HEARTBEAT_BY_HAND) == 92
     assert c_pack(gen, messages.BY_ID[0x20], HEARTBEAT_VALUES) == HEARTBEAT_BY_HAND
     assert messages.encode("heartbeat", **HEARTBEAT_VALUES) == HEARTBEAT_BY_HAND
     assert messages.decode(HEARTBEAT_BY_HAND) == ("heartbeat", HEARTBEAT_VALUES)
     out = ffi.new("msg_heartbeat_t *")
     assert lib.msg_heartbeat_unpack(HEARTBEAT_BY_HAND, len(HEARTBEAT_BY_HAND), out)
     assert {n: getattr(out, n) for n in HEARTBEAT_VALUES} == HEARTBEAT_VALUES
-    assert not lib.msg_heartbeat_unpack(HEARTBEAT_BY_HAND[:-1], 77, out)
+    assert not lib.msg_heartbeat_unpack(HEARTBEAT_BY_HAND[:-1], 91, out)

@@ -250,6 +250,14 @@ NO_CROSS = "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
     ("[servo.theta3]", "[servo.theta4]\nid = 4\n[servo.theta3]", "servo.theta4.id", "unknown key"),
     ('kind = "quaternion"', 'kind = "quaternion"\ncomplementary_weight = 0.9', "estimator.complementary_weight",
      "unknown key"),
+    # the masses: grams, centres on their links
+    ("servo = 54.6", "servo = 0.0546", "masses.servo", "grams (kilograms by mistake?)"),
+    ("end_effector = 30.0 ", "end_effector = -30.0 ", "masses.end_effector", "positive"),
+    ("upper_arm_com = 32.5", "upper_arm_com = 70.0", "masses.upper_arm_com",
+     "must lie on the upper arm (L2): 0 to 65.0 mm from the shoulder, got 70.0"),
+    ("forearm_com = 36.75", "forearm_com = -1.0", "masses.forearm_com", "0 to 73.5 mm from the elbow"),
+    ("forearm_com = 36.75", "", "masses.forearm_com", "missing"),
+    ("end_effector_com = 73.5", 'end_effector_com = "tip"', "masses.end_effector_com", "expected a number"),
     # link lengths in metres by mistake
     ("L2 = 65.0", "L2 = 0.065", "geometry.L2", "millimetres"),
     ("L3 = 73.5", "L3 = 0.0735", "geometry.L3", "millimetres"),

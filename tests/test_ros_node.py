@@ -20,7 +20,7 @@ from scipy.spatial.transform import Rotation
 from conftest import SYSTEM_ENV, catkin_workspace, free_port, require_ros, stop_group
 from oracles import FK_TOL_MM, arm_points
 from uavarm.link import llcp, messages
-from uavarm.link.arm_core import level_velocity
+from uavarm.link.arm_core import level_point, level_velocity
 from uavarm.link.ros_node import ATTITUDE_TYPES, roll_pitch
 from uavarm.model import config
 from uavarm.sim.sitl import Sitl
@@ -64,6 +64,18 @@ def test_level_velocity_matches_scipy():
         level_velocity((0.0, 0.0, 0.0, 0.0), (1.0, 0.0, 0.0), True)
 
 
+def test_level_point_matches_scipy():
+    """A point in the drone's body axes in the level, heading-following frame: turned by the
+    attitude (scipy's Z-Y-X rotation), then back by the yaw."""
+    rng = np.random.default_rng(9)
+    rot = Rotation.random(500, random_state=rng)
+    p = rng.normal(0.0, 0.2, (500, 3))
+    yaw, pitch, roll = rot.as_euler("ZYX").T
+    got = np.array([level_point(r, pt, tuple(u)) for r, pt, u in zip(roll, pitch, p)])
+    want = Rotation.from_euler("Z", -yaw[:, None]).apply(rot.apply(p))
+    assert np.abs(got - want).max() < 1e-12
+
+
 def test_the_sign_conventions_written_in_the_docs_hold():
     """docs/ros.md, "Frames and signs": REP 103 body axes (x forward, y left, z up); a drone
     whose nose dips has positive pitch, one whose right side dips has positive roll; the
@@ -82,6 +94,24 @@ def test_the_sign_conventions_written_in_the_docs_hold():
     flip = Rotation.from_rotvec([math.pi, 0.0, 0.0])
     frd = flip * nose_down * flip.inv()
     assert abs(frd.as_euler("ZYX")[1] + a) < 1e-12
+
+
+def test_the_status_constants_are_the_firmwares_codes():
+    """ArmStatus's STATE_, REFUSAL_ and FAULT_ constants, as genpy builds the message class,
+    are the firmware's MSG_STATE_, MSG_REFUSAL_ and MSG_FAULT_ defines (generated/messages.h),
+    each one of them and no other."""
+    import re
+    require_ros()
+    from uavarm.link.ros_node import load_interfaces
+    msg, _ = load_interfaces()
+    header = (Path(__file__).resolve().parents[1] / "generated" / "messages.h").read_text()
+    firmware = {name: int(value, 0) for name, value in
+                re.findall(r"#define MSG_((?:STATE|REFUSAL|FAULT)_[A-Z0-9_]+) (0x[0-9A-Fa-f]+|\d+)u?\b", header)
+                if not name.endswith("_COUNT")}                 # (how many there are, not a code)
+    ros = {name: getattr(msg.ArmStatus, name) for name in dir(msg.ArmStatus)
+           if re.fullmatch(r"(STATE|REFUSAL|FAULT)_[A-Z0-9_]+", name)}
+    assert len(firmware) == len(messages.STATES) + len(messages.REFUSALS) + len(messages.FAULTS)
+    assert ros == firmware
 
 
 # ------------------------------------------------------------------ fixtures
@@ -168,6 +198,8 @@ class Arm:
         from sensor_msgs.msg import JointState
         self.joint_states = queue.Queue()
         self.joint_sub = rospy.Subscriber(f"/{ns}/joint_states", JointState, self.joint_states.put)
+        self.goal_states = queue.Queue()
+        self.goal_sub = rospy.Subscriber(f"/{ns}/arm/goal_joint_states", JointState, self.goal_states.put)
 
     def wait_ready(self):
         from std_srvs.srv import SetBool
@@ -216,6 +248,7 @@ class Arm:
     def close(self):
         self.sub.unregister()
         self.joint_sub.unregister()
+        self.goal_sub.unregister()
         stop_group(self.proc)
         self.log_file.close()
         self.sitl.stop()
@@ -268,8 +301,14 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     assert status.header.frame_id == "arm_base" and status.attitude_source == "imu"
     assert abs(status.header.stamp.to_sec() - arm.rospy.Time.now().to_sec()) < 5.0
     assert status.reset_cause == "power_on" and status.last_fault == ""
-    js = arm.joint_states.get(timeout=10)          # each heartbeat also as a JointState
-    assert list(js.name) == ["arm_joint1", "arm_joint2", "arm_joint3"] and len(js.position) == 3
+    assert status.state == status.STATE_OFF and status.state_name == "off"
+    # unpowered, the servos cannot be read: no shafts, no joint state; the goals beside them
+    assert all(math.isnan(q) for q in status.joints)
+    assert np.allclose(status.goal_joints, np.radians(m.park_deg), atol=1e-6)
+    goals = arm.goal_states.get(timeout=10)
+    assert list(goals.name) == ["arm_joint1", "arm_joint2", "arm_joint3"]
+    assert np.allclose(goals.position, np.radians(m.park_deg), atol=1e-6)
+    assert arm.joint_states.empty(), "a joint state of an arm whose servos were not read"
 
     r = arm.call("engage", True)
     assert not r.success and "not enabled" in r.message
@@ -279,8 +318,15 @@ def test_engage_refused_until_enabled_then_parked(start_arm):
     park = np.radians(m.park_deg)
     status = arm.wait_status(lambda s: s.enabled and np.abs(joints(s) - park).max() < math.radians(0.5), 8.0)
     assert status is not None, "the parked pose was not reached"
-    assert not status.engaged
+    assert not status.engaged and status.state == status.STATE_PARKED and status.refusal_code == 0
     print(f"parked: joints within {np.degrees(np.abs(joints(status) - park).max()):.3f} deg of park.q")
+    # each heartbeat with the shafts read is a JointState of the shafts
+    js = arm.joint_states.get(timeout=10)
+    assert list(js.name) == ["arm_joint1", "arm_joint2", "arm_joint3"] and all(map(math.isfinite, js.position))
+    # the servos' supply, temperature and load, as they report them (the SITL's 3S battery, 11.1 V)
+    assert all(9.0 <= v <= 12.6 for v in status.servo_voltage), status.servo_voltage
+    assert all(t > 0 for t in status.servo_temperature) and all(-1 <= f <= 1 for f in status.servo_load)
+    assert any(f != 0 for f in status.servo_load), "the parked arm's weight on its servos"
     # the arm's TF from robot_state_publisher: the end effector where the model's FK puts it
     import tf2_ros
     from uavarm.build import firmware
@@ -336,6 +382,10 @@ def test_refusals_and_a_stopped_board_are_answered_with_reasons(start_arm):
 
     r = arm.call("set_position", math.nan, 0.0, 0.0)
     assert not r.success and "finite" in r.message
+    r = arm.call("set_position", *(v * 1000.0 for v in TARGET_M))    # millimetres by mistake
+    assert not r.success and "unreachable" in r.message and "millimetres? the services" in r.message
+    r = arm.call("set_position", 0.5, 0.0, 0.0)                         # only out of reach: no such hint
+    assert not r.success and "millimetres" not in r.message
 
     arm.sitl.stop()                                    # the board goes away
     r = arm.call("engage", True)
@@ -449,3 +499,121 @@ def test_a_board_reset_mid_flight_is_an_error_and_by_default_it_is_enabled_again
     line = next((line for line in arm.log().splitlines() if told in line), "")
     assert line.startswith("[ERROR]") and "it was engaged" in line, arm.log()
     assert ("enable sent again" in line) == reenable and ("reenable is off" in line) != reenable
+
+
+def test_a_limp_arm_moved_by_hand_reports_where_its_servos_are(start_arm):
+    """Hands move the joints of the unpowered arm: it reports no shafts (none can be read) and
+    its last goals as goals, never as joints; powered limp (enable 2, the bench, sent by a
+    second program on the port) the status and joint_states say where the hands put them."""
+    m = config.load()
+    arm = start_arm()
+    hand_deg = np.array([0.0, 10.0, -19.0])
+    for j, deg in enumerate(hand_deg, 1):
+        done = arm.sitl.submit(f"move joint {j} {deg}").result(timeout=30)
+        assert "turned by hand" in done, done
+    status = arm.wait_status(lambda s: True, 2.0)
+    assert status.state == status.STATE_OFF and all(math.isnan(q) for q in status.joints)
+    assert np.allclose(status.goal_joints, np.radians(m.park_deg), atol=1e-6)
+    assert arm.joint_states.empty()
+    with open(arm.sitl.device, "wb", buffering=0) as port:
+        port.write(llcp.encode(messages.encode("enable", on=2)))
+    limp = arm.wait_status(lambda s: s.state == s.STATE_LIMP and all(map(math.isfinite, s.joints)), 5.0)
+    assert limp is not None, f"the bench was not entered:\n{arm.log()}"
+    unit_deg = 300.0 / 1023                                 # one AX-12A position unit (e-manual)
+    assert np.abs(np.degrees(limp.joints) - hand_deg).max() <= unit_deg, np.degrees(limp.joints)
+    assert np.allclose(limp.goal_joints, np.radians(m.park_deg), atol=1e-6)   # no goal sent limp
+    while True:                                             # the JointState of that heartbeat
+        js = arm.joint_states.get(timeout=10)
+        if js.header.stamp == limp.header.stamp:
+            break
+    assert np.abs(np.degrees(js.position) - hand_deg).max() <= unit_deg
+    # the hands move it again: the joints follow
+    assert "turned by hand" in arm.sitl.submit("move joint 3 -40").result(timeout=30)
+    moved = arm.wait_status(lambda s: abs(math.degrees(s.joints[2]) + 40.0) <= unit_deg, 3.0)
+    assert moved is not None and moved.state == moved.STATE_LIMP
+    print(f"limp: joints {np.round(np.degrees(limp.joints), 2)} deg where the hands put "
+          f"{hand_deg} deg; goals {np.round(np.degrees(limp.goal_joints), 2)} deg")
+
+
+def test_joint_states_come_with_every_heartbeat(start_arm):
+    """One JointState per heartbeat whose shafts were read (stamped with its arrival); the
+    rate is the board's heartbeat rate, measured here and printed, not judged."""
+    m = config.load()
+    arm = start_arm()
+    assert arm.call("enable", True).success
+    assert arm.wait_status(lambda s: all(map(math.isfinite, s.joints)), 4.0) is not None
+    while not arm.joint_states.empty():
+        arm.joint_states.get_nowait()
+    seqs, stamps = [], []
+    while len(seqs) < 8:
+        status = arm.wait_status(lambda s: True, 2.0)
+        assert status is not None
+        seqs.append(status.seq)
+        stamps.append(status.header.stamp.to_sec())
+    time.sleep(0.5)                                         # (the last JointState's delivery)
+    js_stamps = []
+    while not arm.joint_states.empty():
+        js_stamps.append(arm.joint_states.get_nowait().header.stamp.to_sec())
+    assert all(t in js_stamps for t in stamps), "a heartbeat without its JointState"
+    assert np.all(np.diff(seqs) % 65536 == 1), "heartbeats lost"
+    rate = (len(stamps) - 1) / (stamps[-1] - stamps[0])
+    print(f"joint_states at {rate:.2f} Hz (the heartbeat's period: {m.heartbeat_period} s)")
+
+
+def test_a_target_stream_in_another_frame_drives_the_arm_there(start_arm):
+    """~target points in a frame a static TF offsets and turns from the arm's base: each one,
+    transformed, becomes the set position; the goals' end effector by the model's FK ends
+    within 1 mm of the last (the shafts' within FK_TOL_MM, a servo unit's rounding and the
+    arm's weight; the level drone: no attitude). A point out of reach is refused on ~status as the
+    service's is; a frame TF does not know is logged and ignored."""
+    import tf2_ros
+    from geometry_msgs.msg import PointStamped, TransformStamped
+    m = config.load()
+    arm = start_arm()
+    rospy = arm.rospy
+    frame = f"{arm.ns}_tool"
+    offset, turn = np.array([0.03, 0.02, -0.10]), Rotation.from_euler("z", 90.0, degrees=True)
+    t = TransformStamped()
+    t.header.stamp, t.header.frame_id, t.child_frame_id = rospy.Time.now(), "arm_base", frame
+    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = offset
+    (t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+     t.transform.rotation.w) = turn.as_quat()
+    broadcaster = tf2_ros.StaticTransformBroadcaster()
+    broadcaster.sendTransform(t)
+    pub = rospy.Publisher(f"/{arm.ns}/arm/target", PointStamped, queue_size=10)
+
+    def send(base_point, frame_id=frame):
+        p = PointStamped()
+        p.header.stamp, p.header.frame_id = rospy.Time.now(), frame_id
+        p.point.x, p.point.y, p.point.z = turn.inv().apply(np.asarray(base_point) - offset)
+        pub.publish(p)
+
+    assert arm.call("enable", True).success
+    assert arm.call("engage", True).success
+    start = arm_points(m, np.radians(m.park_deg))[2] / 1000.0
+    target = np.array(TARGET_M)
+    for k in range(1, 21):                                  # 1 s from the park point to the target, 20 Hz
+        send(start + (target - start) * k / 20)
+        time.sleep(0.05)                                    # (the planner's pace)
+
+    seen = []
+    off_mm = lambda q: np.linalg.norm(arm_points(m, np.asarray(q))[2] - target * 1000.0)   # noqa: E731
+
+    def there(s):
+        send(target)                                        # (the stream goes on)
+        seen.append(s)
+        return (np.allclose(s.set_position, target, atol=1e-6) and s.engaged
+                and off_mm(s.goal_joints) <= 1.0 and off_mm(s.joints) <= FK_TOL_MM)
+    status = arm.wait_status(there, 6.0)
+    assert status is not None, f"the streamed target was not reached: last status {seen[-1:]}\n{arm.log()}"
+    print(f"target stream: the goals' end effector {off_mm(status.goal_joints):.3f} mm from the last point, "
+          f"the shafts' {off_mm(status.joints):.3f} mm")
+
+    send((0.5, 0.0, 0.0))                                   # out of reach
+    refused = arm.wait_status(lambda s: s.unreachable, 2.0)
+    assert refused is not None and np.allclose(refused.set_position, target, atol=1e-6)
+    send(target, frame_id="no_such_frame")
+    end = time.monotonic() + 30
+    while "~target in 'no_such_frame' ignored" not in arm.log() and time.monotonic() < end:
+        time.sleep(0.1)                                     # (until the node's log says it; a hang guard)
+    assert "~target in 'no_such_frame' ignored" in arm.log()

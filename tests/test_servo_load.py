@@ -73,8 +73,10 @@ def gravity_oracle(q, up, masses: ArmMasses) -> np.ndarray:
 
     def energy(q):
         shoulder, elbow, ee = (p / 1000 for p in arm_points(MODEL, q))
-        placed = [(masses.upper_arm, (shoulder + elbow) / 2), (masses.elbow_servo, elbow),
-                  (masses.forearm, (elbow + ee) / 2), (masses.end_effector, ee)]
+        along = lambda a, b, d: a + (b - a) * d / np.linalg.norm(b - a)    # d m from a toward b
+        placed = [(masses.upper_arm, along(shoulder, elbow, masses.upper_arm_com)), (masses.elbow_servo, elbow),
+                  (masses.forearm, along(elbow, ee, masses.forearm_com)),
+                  (masses.end_effector, along(elbow, ee, masses.end_effector_com))]
         return sum(kg * G * float(up @ p) for kg, p in placed)
 
     h = 1e-6
@@ -130,7 +132,7 @@ def test_each_servo_reads_the_load_statics_predicts(truth, roll, pitch, joints):
     board, port, units = held_board(truth, roll, pitch, joints)
     zeros, directions = truth
     q = [d * (u - z) / UNITS_PER_DEG for u, z, d in zip(units, zeros, directions)]
-    gravity = gravity_oracle(np.radians(q), up_of(roll, pitch), ArmMasses())
+    gravity = gravity_oracle(np.radians(q), up_of(roll, pitch), ArmMasses.of(MODEL))
     got = [PH.read2ByteTxRx(port, s.id, 40) for s in MODEL.servos]
     assert all(r[1:] == (sdk.COMM_SUCCESS, 0) for r in got)
     for j, d in enumerate(directions):
@@ -143,9 +145,10 @@ def test_each_servo_reads_the_load_statics_predicts(truth, roll, pitch, joints):
 def test_arm_held_out_level_loads_joint_2_by_its_lever_arms():
     """By hand: the arm straight out (joint 2 at 90 deg), each mass at its distance from the
     shoulder; joint 2's servo, mounted either way, pushes the joint up."""
-    m = ArmMasses()
+    m = ArmMasses.of(MODEL)
     L2, L3 = MODEL.L2 / 1000, MODEL.L3 / 1000
-    torque = G * (m.upper_arm * L2 / 2 + m.elbow_servo * L2 + m.forearm * (L2 + L3 / 2) + m.end_effector * (L2 + L3))
+    torque = G * (m.upper_arm * m.upper_arm_com + m.elbow_servo * L2 + m.forearm * (L2 + m.forearm_com)
+                  + m.end_effector * (L2 + m.end_effector_com))
     for truth, bit in ((MODEL_TRUTH, 0), (REVERSED, CW)):      # joint 2 up is CCW, or CW reversed
         board, port, units = held_board(truth, 0, 0, (0, 90, 0))
         value = PH.read2ByteTxRx(port, 2, 40)[0]
@@ -184,7 +187,7 @@ def test_the_firmware_reports_the_load_in_its_heartbeat():
     assert run_until(board, lambda: running(board), 3.0) is not None
     board.run(1.0)
     hb = board.heartbeats[-1]
-    gravity = gravity_oracle(board.true_joints(), [0.0, 0.0, 1.0], ArmMasses())
+    gravity = gravity_oracle(board.true_joints(), [0.0, 0.0, 1.0], ArmMasses.of(MODEL))
     volts = hb["servo1_voltage"] / 10
     for j, s in enumerate(MODEL.servos):
         want = expected_load(gravity[j], s.direction, volts)

@@ -90,3 +90,80 @@ def test_the_ros_node_names_the_urdfs_joints():
     from uavarm.link.ros_node import JOINT_NAMES
     root = ET.parse(URDF).getroot()
     assert [j.get("name") for j in chain(root) if j.get("type") == "revolute"] == list(JOINT_NAMES)
+
+
+# ------------------------------------------------------------------ inertials (no Gazebo here)
+
+MOVING = ("arm_turret", "upper_arm", "forearm")
+
+
+def inertial(root, link):
+    el = root.find(f"link[@name='{link}']/inertial")
+    assert el is not None, f"{link}: no inertial"
+    i = {k: float(v) for k, v in el.find("inertia").attrib.items()}
+    tensor = np.array([[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]], [i["ixz"], i["iyz"], i["izz"]]])
+    centre = np.array([float(v) for v in el.find("origin").get("xyz").split()])
+    return float(el.find("mass").get("value")), centre, tensor
+
+
+def test_every_link_that_moves_has_a_physical_inertial_and_a_collision_shape():
+    """What a simulator's dynamics needs (checked here without one: no Gazebo is run): each
+    link a joint moves has a positive mass and an inertia tensor that a rigid body can have
+    (positive definite; each principal moment at most the sum of the other two), and a
+    collision shape. urdfdom parses it (test_check_urdf_accepts_it)."""
+    root = ET.parse(URDF).getroot()
+    for link in ("arm_base",) + MOVING:
+        kg, _, tensor = inertial(root, link)
+        moments = np.linalg.eigvalsh(tensor)
+        assert kg > 0 and moments.min() > 0, (link, kg, moments)
+        a, b, c = moments
+        assert a <= b + c and b <= a + c and c <= a + b, (link, moments)
+        assert root.findall(f"link[@name='{link}']/collision"), f"{link}: no collision shape"
+    assert root.find("link[@name='uav_frame']/inertial") is None   # KDL takes no inertia on the root
+
+
+def test_the_inertials_are_the_model_files_masses():
+    """Masses and centres from the model file read here with tomllib (grams, mm from each
+    link's joint); each inertia against a sampled cloud of the solids the URDF's comment names
+    (an AX-12A a 32 x 50 x 40 mm box, brackets a rod of the link's length and 10 mm radius, the
+    tool a 15 mm ball), to 2 %."""
+    import tomllib
+    raw = tomllib.loads((ROOT / "model" / "manipulator.toml").read_text())
+    ms, geo = raw["masses"], raw["geometry"]
+    g, mm = (lambda v: v / 1000), (lambda v: v / 1000)
+    rng = np.random.default_rng(3)
+    n = 400_000
+
+    def box(kg, centre):
+        return kg, centre + rng.uniform(-0.5, 0.5, (n, 3)) * [0.032, 0.050, 0.040]
+
+    def rod(kg, length, centre):
+        r, t = 0.010 * np.sqrt(rng.uniform(0, 1, n)), rng.uniform(0, 2 * math.pi, n)
+        return kg, centre + np.c_[r * np.cos(t), r * np.sin(t), rng.uniform(-length / 2, length / 2, n)]
+
+    def ball(kg, centre):
+        v = rng.normal(size=(n, 3))
+        v *= (0.015 * rng.uniform(0, 1, n) ** (1 / 3) / np.linalg.norm(v, axis=1))[:, None]
+        return kg, centre + v
+
+    down = lambda d: np.array([0.0, 0.0, -d])
+    servo = g(ms["servo"])
+    parts = {
+        "arm_turret": [box(servo, down(mm(geo["L1"])))],
+        "upper_arm": [rod(g(ms["upper_arm"]), mm(geo["L2"]), down(mm(ms["upper_arm_com"]))),
+                      box(servo, down(mm(geo["L2"])))],
+        "forearm": [rod(g(ms["forearm"]), mm(geo["L3"]), down(mm(ms["forearm_com"]))),
+                    ball(g(ms["end_effector"]), down(mm(ms["end_effector_com"])))],
+    }
+    root = ET.parse(URDF).getroot()
+    for link, cloud in parts.items():
+        kg, centre, tensor = inertial(root, link)
+        total = sum(k for k, _ in cloud)
+        com = sum(k * pts.mean(axis=0) for k, pts in cloud) / total
+        want = np.zeros((3, 3))
+        for k, pts in cloud:
+            d = pts - com
+            want += k * ((d * d).sum(axis=1).mean() * np.eye(3) - (d[:, :, None] * d[:, None, :]).mean(axis=0))
+        assert kg == pytest.approx(total, rel=1e-5)
+        assert np.abs(centre - com).max() < 2e-4, (link, centre, com)
+        assert np.abs(tensor - want).max() <= 0.02 * np.abs(want).max(), (link, tensor, want)

@@ -51,15 +51,16 @@ def demo(args) -> int:
 
 def _heartbeat_line(hb) -> str:
     from .link.client import bench_note
-    from .link.messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, state_name
-    q = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
+    from .link.messages import REFUSALS, fault_names, fault_vector_name, reset_cause_name, source_names, state_name
+    shafts = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("p1", "p2", "p3"))   # nan: not read
+    goals = ", ".join(f"{math.degrees(hb[k]):7.2f}" for k in ("q1", "q2", "q3"))
     refused = f" refused {REFUSALS[hb['refusal']][0]}" if 0 < hb["refusal"] < len(REFUSALS) else ""
     halted = f" after {fault_vector_name(hb['last_fault'])}" if hb["last_fault"] else ""
     return (f"#{hb['seq']} up {hb['uptime_ms'] / 1000:.1f} s {state_name(hb['state'])}{bench_note(hb)}{refused} "
             f"(reset: {reset_cause_name(hb['reset_cause'])}{halted}): "
             f"enabled {hb['enabled']} engaged {hb['engaged']} unreachable {hb['unreachable']} "
-            f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm joints [{q}] deg "
-            f"faults {fault_names(hb['faults'])} servo errors "
+            f"set ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f}) mm shafts [{shafts}] goals [{goals}] deg "
+            f"faults {fault_names(hb['faults'])} estimate from {source_names(hb['estimate_sources'])} servo errors "
             f"{[hb[f'servo{i}_error'] for i in (1, 2, 3)]} link frames {hb['link_frames_ok']} "
             f"link errors {hb['link_errors']} servo timeouts {hb['servo_timeouts']}")
 

@@ -235,7 +235,9 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S, allo
         raise CalibrationError("the arm must be enabled and not engaged: `uavarm link PORT enable` first")
     ask(f"Each joint will turn {np.degrees(LAG_JOG_RAD):.0f} deg and back at the park speed, one at a time, "
         "with nothing touching the arm. Keep clear and press Enter.")
-    q = [hb["q1"], hb["q2"], hb["q3"]]
+    q = [hb["p1"], hb["p2"], hb["p3"]]   # the shafts as read
+    if not all(np.isfinite(q)):
+        raise CalibrationError("the servos' positions could not be read: check the servo bus and try again")
     fits = []
     with arm.kept_alive():
         arm.stream(servos=True)

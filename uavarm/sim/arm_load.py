@@ -1,15 +1,13 @@
-"""The arm's weight on its joints: the simulated hardware's masses and the torque gravity
-exerts about each joint at rest (statics; the arm's inertia in motion is not modelled).
+"""The arm's weight on its joints: the arm's masses and the torque gravity exerts about each
+joint at rest (statics; the arm's inertia in motion is not modelled).
 
-The masses are the hardware's, as the simulator takes it, not the model file's: the
-firmware knows none of them. Each is a point mass:
+The masses and their centres are the model file's [masses] (the URDF's inertials come from
+the same keys); the firmware uses none of them. Each is a point mass:
 
-- the elbow servo (an AX-12A, 54.6 g in its e-manual) at the end of the upper arm, on joint
-  3's axis;
-- the upper arm's brackets at the middle of the upper arm (L2), the forearm's at the
-  middle of the forearm (L3): 20 g each, an assumption (two plastic AX-12A brackets and
-  screws);
-- the end effector at the forearm's end: 30 g, an assumption (a light tool).
+- the elbow servo (an AX-12A) at the end of the upper arm, on joint 3's axis;
+- the upper arm's brackets at masses.upper_arm_com from the shoulder, the forearm's at
+  masses.forearm_com from the elbow;
+- the end effector (the tool) at masses.end_effector_com from the elbow.
 
 The shoulder servo and joint 1's link lie on joint 1's and joint 2's axes (both pass through
 the shoulder), so their weight turns no joint of the arm; joint 1's servo is on the drone.
@@ -24,11 +22,22 @@ from .drone import G
 
 @dataclass(frozen=True)
 class ArmMasses:
-    """Point masses in kg (where each sits: the module's docstring)."""
-    elbow_servo: float = 0.0546
-    upper_arm: float = 0.020
-    forearm: float = 0.020
-    end_effector: float = 0.030
+    """Point masses in kg and their distances in m along their links (the module's docstring)."""
+    elbow_servo: float
+    upper_arm: float
+    upper_arm_com: float
+    forearm: float
+    forearm_com: float
+    end_effector: float
+    end_effector_com: float
+
+    @classmethod
+    def of(cls, model) -> "ArmMasses":
+        """The model file's [masses] (g, mm)."""
+        m = model.masses
+        return cls(elbow_servo=m.servo / 1000, upper_arm=m.upper_arm / 1000, upper_arm_com=m.upper_arm_com / 1000,
+                   forearm=m.forearm / 1000, forearm_com=m.forearm_com / 1000,
+                   end_effector=m.end_effector / 1000, end_effector_com=m.end_effector_com / 1000)
 
 
 def _cross(a, b):
@@ -47,13 +56,14 @@ def _moment(axis, about, masses_at, up):
     return total
 
 
-def gravity_torques(model, joints, up, masses: ArmMasses = ArmMasses()) -> tuple[float, float, float]:
+def gravity_torques(model, joints, up, masses: ArmMasses | None = None) -> tuple[float, float, float]:
     """The torque (N m) gravity exerts about each joint, in the sense its angle grows, with the
     joints at `joints` (rad, as they really are) and `up` the unit vector pointing up, in the
-    base's axes (level: (0, 0, 1)). The arm's geometry is the model file's (the DH table:
+    base's axes (level: (0, 0, 1)); masses: the model file's unless given. The arm's geometry is the model file's (the DH table:
     joint 1 turns the arm's vertical plane, whose horizontal direction is (cos q1, -sin q1,
     0), about the base's z axis; in that plane the upper arm hangs from the shoulder, L1
     below the base, at q2 from straight down, the forearm at q2 + q3)."""
+    masses = masses or ArmMasses.of(model)
     q1, q2, q3 = joints
     h = (math.cos(q1), -math.sin(q1), 0.0)
     down = (0.0, 0.0, -1.0)
@@ -66,9 +76,10 @@ def gravity_torques(model, joints, up, masses: ArmMasses = ArmMasses()) -> tuple
 
     shoulder = (0.0, 0.0, -L1)
     elbow = along(shoulder, L2, q2)
-    beyond_elbow = [(masses.forearm, along(elbow, L3 / 2, q2 + q3)),
-                    (masses.end_effector, along(elbow, L3, q2 + q3))]
-    beyond_shoulder = [(masses.upper_arm, along(shoulder, L2 / 2, q2)), (masses.elbow_servo, elbow)] + beyond_elbow
+    beyond_elbow = [(masses.forearm, along(elbow, masses.forearm_com, q2 + q3)),
+                    (masses.end_effector, along(elbow, masses.end_effector_com, q2 + q3))]
+    beyond_shoulder = [(masses.upper_arm, along(shoulder, masses.upper_arm_com, q2)),
+                       (masses.elbow_servo, elbow)] + beyond_elbow
     return (_moment((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), beyond_shoulder, up),
             _moment(axis_23, shoulder, beyond_shoulder, up),
             _moment(axis_23, elbow, beyond_elbow, up))

@@ -210,7 +210,7 @@ class SimBoard:
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo, supply=ax12_sim.supply_of(supply))
         self.bus.power(False)
         self._truth_zero, self._truth_direction = servo_truth_of(m, servo_truth)
-        self.arm_masses = arm_masses or ArmMasses()
+        self.arm_masses = arm_masses or ArmMasses.of(m)
         # the arm's shafts, joint by joint (still there if a cable is pulled off the bus)
         self.joint_servos = [next((sv for sv in self.bus.servos if sv.id == s.id), None) for s in m.servos]
         for j, servo in enumerate(self.joint_servos):

@@ -760,8 +760,9 @@ static uint8_t arm_state(const app_t *app)
     return app->parked && mo->arrived ? MSG_STATE_PARKED : MSG_STATE_PARKING;
 }
 
-/* Measured joint angles where the latest status read succeeded, else the command. */
-static void current_joints(const app_t *app, float q[3])
+/* The shafts where the latest status read succeeded, NaN where none did (the supply off, a
+ * servo not answering): never the goal in their place. */
+static void read_shafts(const app_t *app, float p[3])
 {
     uint16_t units[SBUS_SERVOS];
     float measured[3];
@@ -769,7 +770,7 @@ static void current_joints(const app_t *app, float q[3])
     servo_units_to_joints(units, measured);
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         const sbus_servo_t *s = &app->bus.servo[i];
-        q[i] = app->enabled && s->status_valid && !s->failed ? measured[i] : app->q_cmd[i];
+        p[i] = app->enabled && s->status_valid && !s->failed ? measured[i] : NAN;
     }
 }
 
@@ -786,11 +787,11 @@ static void send_heartbeat(app_t *app)
 {
     const llcp_rx_t *rx = &app->link;
     msg_heartbeat_t hb;
-    float q[3];
+    float p[3];
     uint8_t payload[MSG_HEARTBEAT_SIZE];
     uint32_t timeouts = 0;
     for (int i = 0; i < SBUS_SERVOS; ++i) timeouts += app->bus.servo[i].timeouts;
-    current_joints(app, q);
+    read_shafts(app, p);
     hb.seq = app->heartbeat_seq++;
     hb.uptime_ms = link_ms(app);
     hb.enabled = (uint8_t)(app->bench ? 2u : app->enabled ? 1u : 0u);   /* 2: the bench (enable 2) */
@@ -805,9 +806,9 @@ static void send_heartbeat(app_t *app)
     hb.set_x = app->set_position[0];
     hb.set_y = app->set_position[1];
     hb.set_z = app->set_position[2];
-    hb.q1 = q[0];
-    hb.q2 = q[1];
-    hb.q3 = q[2];
+    hb.q1 = app->q_cmd[0];
+    hb.q2 = app->q_cmd[1];
+    hb.q3 = app->q_cmd[2];
     /* counters wrap at 16 bits on the wire */
     hb.link_frames_ok = (uint16_t)rx->frames_ok;
     hb.link_errors = (uint16_t)(rx->checksum_errors + rx->hex_errors + rx->length_errors
@@ -834,6 +835,9 @@ static void send_heartbeat(app_t *app)
     hb.servo3_load = s[2].present_load;
     hb.lagging_joints = (uint8_t)(app->behind | app->lagging_since_heartbeat);
     hb.estimate_sources = stab_sources(&app->stab, now_us(app));
+    hb.p1 = p[0];
+    hb.p2 = p[1];
+    hb.p3 = p[2];
     if (send_payload(app, payload, msg_heartbeat_pack(&hb, payload, sizeof payload))) {
         app->heartbeats_sent++;
         app->faults_since_heartbeat = 0;

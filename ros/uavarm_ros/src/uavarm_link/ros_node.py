@@ -16,11 +16,20 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   ("drone") or the board runs on its own IMU only ("imu"), and `velocity_source` whether the
   drone's velocity is ("drone" or "none"; each change is logged). New fault
   bits (for example link_lost when the arm parked after a silent link) are logged as warnings.
+- `joint_states` (sensor_msgs/JointState, robot_state_publisher's): the shafts of each
+  heartbeat as the servos' status reads found them, only the joints read (none while the arm
+  is disabled: its servos are unpowered), never a goal in their place; `~goal_joint_states`
+  the goals beside them.
+- `~target` (geometry_msgs/PointStamped): a stream of targets in any frame TF links to
+  `arm_base`, transformed there, levelled with the drone's roll and pitch and sent as the set
+  position, the latest one at most `~target_rate` (50) times a second (at most the board's
+  tick rate); the board's refusals come in `~status` as for the service.
 - the drone's attitude (`~attitude_topic`, default `estimation_manager/odom_main`, the MRS UAV
   System's estimated state; `~attitude_type`: nav_msgs/Odometry,
   sensor_msgs/Imu or geometry_msgs/QuaternionStamped): the orientation quaternion as Z-Y-X
-  roll and pitch, the latest one forwarded with ArmLink.send_attitude at `~attitude_rate` Hz
-  (default 100, at least 50) while it is fresher than `~attitude_timeout` s. The board counts
+  roll and pitch, each message forwarded once with ArmLink.send_attitude by the loop, which
+  runs at `~attitude_rate` Hz (default 100, at least 50), while it is fresher than
+  `~attitude_timeout` s; a message stamped zero is stamped on arrival (logged once). The board counts
   it as keep-alive, and a firmware built with the link estimator fuses it. With no fresh attitude and `~keep_alive` true, an
   engaged arm is kept alive by repeating its set position every `~keep_alive_period` s.
 - the drone's velocity, from the same nav_msgs/Odometry (`~velocity`, default true): the
@@ -61,7 +70,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from .arm_core import JOINT_NAMES, ArmCore, level_velocity, roll_pitch
+from .arm_core import JOINT_NAMES, ArmCore, level_point, level_velocity, roll_pitch, rotate
 from .client import KEEP_ALIVE_S
 
 PACKAGE = "uavarm_ros"
@@ -224,12 +233,16 @@ class ArmNode:
                             keep_alive=bool(rospy.get_param("~keep_alive", True)),
                             keep_alive_period=float(rospy.get_param("~keep_alive_period", KEEP_ALIVE_S)),
                             attitude_topic=rospy.resolve_name(topic),
-                            reenable=bool(rospy.get_param("~reenable", True)))
+                            reenable=bool(rospy.get_param("~reenable", True)),
+                            target_rate=float(rospy.get_param("~target_rate", 50.0)))
         self.status_pub = rospy.Publisher("~status", msg.ArmStatus, queue_size=10)
         self.joint_pub = rospy.Publisher("joint_states", JointState, queue_size=10)   # robot_state_publisher's
+        self.goal_pub = rospy.Publisher("~goal_joint_states", JointState, queue_size=10)
         self._joint_state = JointState
         self._attach(rospy.get_param("~parent_frame", ""))
         rospy.Subscriber(topic, att_class, self._on_attitude, queue_size=1)
+        self._tilt = None                          # (roll, pitch, when): the drone's latest, for ~target
+        self._start_target_stream()
         self.core.open(time.monotonic())
         rospy.Service("~enable", SetBool, self._on_enable)
         rospy.Service("~engage", SetBool, self._on_engage)
@@ -252,6 +265,31 @@ class ArmNode:
         self._static_tf = tf2_ros.StaticTransformBroadcaster()
         self._static_tf.sendTransform(t)
 
+    def _start_target_stream(self) -> None:
+        """~target (geometry_msgs/PointStamped): each point, in any frame TF links to the arm's
+        base, turned into the set position's level frame and streamed to the board."""
+        import tf2_ros
+        from geometry_msgs.msg import PointStamped
+        self._tf_buffer = tf2_ros.Buffer()
+        self._tf_listener = tf2_ros.TransformListener(self._tf_buffer)
+        self._tf_errors = (tf2_ros.LookupException, tf2_ros.ConnectivityException, tf2_ros.ExtrapolationException)
+        self.rospy.Subscriber("~target", PointStamped, self._on_target, queue_size=1)
+
+    def _on_target(self, message) -> None:
+        p = message.point
+        try:
+            t = self._tf_buffer.lookup_transform(STATUS_FRAME, message.header.frame_id or STATUS_FRAME,
+                                                 message.header.stamp, self.rospy.Duration(0.1))
+        except self._tf_errors as exc:
+            self.rospy.logwarn_throttle(5.0, f"arm: ~target in {message.header.frame_id!r} ignored: {exc}")
+            return
+        r, d = t.transform.rotation, t.transform.translation
+        x, y, z = rotate((r.x, r.y, r.z, r.w), (p.x, p.y, p.z))
+        body = (x + d.x, y + d.y, z + d.z)               # in arm_base, which turns with the drone
+        tilt = self._tilt
+        fresh = tilt is not None and time.monotonic() - tilt[2] <= self.core.attitude_timeout
+        self.core.target(*(level_point(tilt[0], tilt[1], body) if fresh else body))
+
     def spin(self) -> None:
         period = 1.0 / self.attitude_rate
         next_t = time.monotonic()
@@ -271,11 +309,19 @@ class ArmNode:
         for field, value in status.items():
             setattr(m, field, value)
         self.status_pub.publish(m)
+        # the shafts the servos could be read for (none, unpowered): never a goal in their place
+        read = [(name, q) for name, q in zip(JOINT_NAMES, m.joints) if math.isfinite(q)]
+        if read:
+            self.joint_pub.publish(self._joints(m.header.stamp, read))
+        self.goal_pub.publish(self._joints(m.header.stamp, zip(JOINT_NAMES, m.goal_joints)))
+
+    def _joints(self, stamp, named):
         js = self._joint_state()
-        js.header.stamp = m.header.stamp
-        js.name = list(JOINT_NAMES)
-        js.position = list(m.joints)
-        self.joint_pub.publish(js)
+        js.header.stamp = stamp
+        for name, q in named:
+            js.name.append(name)
+            js.position.append(q)
+        return js
 
     def _on_attitude(self, message) -> None:
         q = self._orientation(message)
@@ -290,6 +336,7 @@ class ArmNode:
         stamp = message.header.stamp
         stamp_us = stamp.to_nsec() // 1000 if not stamp.is_zero() else None
         now = time.monotonic()
+        self._tilt = (roll, pitch, now)
         self.core.attitude(roll, pitch, stamp_us, now)
         if self._velocity:
             lin = message.twist.twist.linear
