@@ -193,6 +193,14 @@ class AX12:
                  {"baud_rate": 9, "return_delay_time": 0}
     """
 
+    # step() moves the shaft itself unless a subclass changes _advance or max_speed (a
+    # faulty servo in the tests): then it goes through them, substep by substep
+    _plain_motion = True
+
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        cls._plain_motion = cls._advance is AX12._advance and cls.max_speed is AX12.max_speed
+
     def __init__(self, id: int = 1, *, position: float = 512.0, voltage: float = 12.0,
                  temperature: float = 30.0, time_constant: float = 0.0, deadband: bool = False,
                  reply_to_bad_checksum: bool = True, firmware_version: int = 0,
@@ -515,9 +523,12 @@ class AX12:
             t[34] = t[35] = 0                                      # Torque Limit
         start = self._pos
         if t[24] and (t[34] or t[35]):                             # Torque Enable, Torque Limit
-            n = max(1, math.ceil(dt / MAX_SUBSTEP))
-            for _ in range(n):
-                self._advance(dt / n)
+            n = 1 if dt <= MAX_SUBSTEP else math.ceil(dt / MAX_SUBSTEP)
+            if self._plain_motion and (t[6] or t[7] or t[8] or t[9]):   # joint mode
+                self._follow(dt / n, n)
+            else:
+                for _ in range(n):
+                    self._advance(dt / n)
         else:
             self._profile = self._pos   # limp: no load is modelled, the shaft stays put
         self._update_present(start, dt)
@@ -530,24 +541,37 @@ class AX12:
             rate = (speed & 0x3FF) / 1023 * self.max_speed()
             self._pos = self._profile = (self._pos + direction * rate * h) % 1024
             return
+        self._follow(h, 1)
+
+    def _follow(self, h: float, n: int) -> None:
+        """Joint mode: n substeps of h seconds toward Goal Position at Moving Speed. (The
+        table and the voltage do not change within a step: read once.)"""
+        t = self.table
         goal = t[30] | t[31] << 8
+        pos, profile = self._pos, self._profile
+        if profile == goal:                     # at rest: each substep would leave it so
+            err = profile - pos
+            if err == 0 or (self.deadband and self.time_constant > 0 and abs(err) <= t[27 if err > 0 else 26]):
+                return
         units = (t[32] | t[33] << 8) & 0x3FF
         cap = self.max_speed()
         speed = cap if units == 0 else min(units * RPM_PER_SPEED_UNIT * UNITS_PER_S_PER_RPM, cap)
         travel = speed * h
-        if abs(goal - self._profile) <= travel:
-            self._profile = float(goal)
-        else:
-            self._profile += math.copysign(travel, goal - self._profile)
-        if self.time_constant > 0:
-            err = self._profile - self._pos
-            if self.deadband:
-                margin = t[27 if err > 0 else 26]     # CCW / CW Compliance Margin
-                if abs(err) <= margin:
-                    return
-            self._pos += err * -math.expm1(-h / self.time_constant)
-        else:
-            self._pos = self._profile
+        lag = self.time_constant > 0
+        pull = -math.expm1(-h / self.time_constant) if lag else 0.0
+        for _ in range(n):
+            if abs(goal - profile) <= travel:
+                profile = float(goal)
+            else:
+                profile += math.copysign(travel, goal - profile)
+            if lag:
+                err = profile - pos
+                if self.deadband and abs(err) <= t[27 if err > 0 else 26]:   # CCW / CW Compliance Margin
+                    continue
+                pos += err * pull
+            else:
+                pos = profile
+        self._pos, self._profile = pos, profile
 
     def _quantised(self) -> int:
         q = round(self._pos)
@@ -555,7 +579,8 @@ class AX12:
 
     def _update_present(self, start: float, dt: float) -> None:
         t = self.table
-        q = self._quantised()
+        q = round(self._pos)
+        q = 0 if q < 0 else 1023 if q > 1023 else q                 # (as _quantised)
         t[36], t[37] = q & 0xFF, q >> 8                              # Present Position
         rate = (self._pos - start) / dt if dt > 0 else 0.0      # units/s, + = CCW
         if rate:                                                # (a shaft at rest: 0, and quicker)
@@ -730,7 +755,7 @@ class AX12Bus:
         """Bring the servos' motion up to the bus time."""
         if self.time > self._servo_time:
             dt = self.time - self._servo_time
-            before = [servo.position for servo in self.servos]
+            before = [servo._pos for servo in self.servos]
             for servo in self.servos:
                 servo.step(dt)
             self._servo_time = self.time
@@ -741,9 +766,11 @@ class AX12Bus:
         """The supply's voltage after an interval of dt in which the shafts moved from `before`."""
         shares = []
         for s, p in zip(self.servos, before):
-            if s.powered:
+            if s.powered and s._pos == p:
+                shares.append(0.0)                      # (a shaft at rest, at any cap)
+            elif s.powered:
                 cap = s.max_speed()
-                shares.append(abs(s.position - p) / dt / cap if cap > 0 else 0.0)
+                shares.append(abs(s._pos - p) / dt / cap if cap > 0 else 0.0)
         volts = self.supply.sagged(shares)
         for servo in self.servos:
             servo.voltage = volts
