@@ -275,8 +275,9 @@ class AX12:
         return RETURN_DELAY_UNIT * self.register("return_delay_time")
 
     def hears(self, bus_baud: float) -> bool:
-        """Powered and within the 3 % baud tolerance of the bus."""
-        return self.powered and abs(baud_of(self.register("baud_rate")) - bus_baud) <= 0.03 * bus_baud
+        """Powered and within the 3 % baud tolerance of the bus. (Asked for every byte: Baud
+        Rate read by its address, 4.)"""
+        return self.powered and abs(baud_of(self.table[4]) - bus_baud) <= 0.03 * bus_baud
 
     def condition_bits(self) -> int:
         """Error bits of lasting conditions: voltage, temperature, overload. (By address, as
