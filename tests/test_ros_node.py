@@ -27,6 +27,9 @@ from uavarm.sim.sitl import Sitl
 
 SPEED = 1.0                          # simulated seconds per real second: the node's own pace
 TARGET_M = (0.060, 0.020, -0.120)
+# simulated s: the bound of a wait that ends at the first status saying what a command or
+# event did (a heartbeat every 0.5 s: a hang guard, ten times the few heartbeats it takes)
+ANY_STATUS_S = 20.0
 pytestmark = [pytest.mark.filterwarnings("ignore:notifyAll:DeprecationWarning"),   # rospy's own
               pytest.mark.realtime]   # a simulated board in real time: a stage of its own (Makefile)
 
@@ -210,6 +213,13 @@ class Arm:
         except rospy.ROSException:
             raise AssertionError(f"the node's services did not come up:\n{self.log()}") from None
         self.proxies = {name: rospy.ServiceProxy(f"/{self.ns}/arm/{name}", t) for name, t in names.items()}
+        # the node has heard the board before a test commands it (its first status): a command
+        # sent earlier waits on the wall clock for heartbeats the node's link has not begun to
+        # read, which a busy machine can make late (60 s: a hang guard)
+        try:
+            self.statuses.get(timeout=60)
+        except queue.Empty:
+            raise AssertionError(f"no status from the node in 60 s:\n{self.log()}") from None
 
     def log(self) -> str:
         return Path(self.log_path).read_text(errors="replace")
@@ -296,7 +306,7 @@ def test_attitude_message_types():
 def test_engage_refused_until_enabled_then_parked(start_arm):
     m = config.load()
     arm = start_arm()
-    status = arm.wait_status(lambda s: True, 2.0)
+    status = arm.wait_status(lambda s: True, ANY_STATUS_S)
     assert status is not None and not status.enabled and not status.engaged and status.fault_names == []
     assert status.header.frame_id == "arm_base" and status.attitude_source == "imu"
     assert abs(status.header.stamp.to_sec() - arm.rospy.Time.now().to_sec()) < 5.0
@@ -364,7 +374,7 @@ def test_engage_reaches_the_set_position_and_disable_cuts_power(start_arm):
 
     r = arm.call("enable", False)
     assert r.success
-    status = arm.wait_status(lambda s: True, 2.0)
+    status = arm.wait_status(lambda s: True, ANY_STATUS_S)
     assert not status.enabled and not status.engaged
     assert not arm.sitl.board.servo_power
 
@@ -377,7 +387,7 @@ def test_refusals_and_a_stopped_board_are_answered_with_reasons(start_arm):
 
     r = arm.call("set_position", 0.5, 0.0, 0.0)
     assert not r.success and "unreachable" in r.message and "0.5000" in r.message
-    status = arm.wait_status(lambda s: True, 2.0)
+    status = arm.wait_status(lambda s: True, ANY_STATUS_S)
     assert status.unreachable and np.allclose(status.set_position, park_point, atol=1e-4)
 
     r = arm.call("set_position", math.nan, 0.0, 0.0)
@@ -432,7 +442,7 @@ def test_attitude_is_forwarded_and_a_cut_link_parks_the_arm(start_arm):
         t0, n0 = time.monotonic(), len(arm.tap.attitudes)
         held = arm.wait_status(lambda s: not s.engaged, 3 * m.link_silence_timeout)
         assert held is None, f"the engaged arm parked while the attitude was forwarded: {held}"
-        fusing = arm.wait_status(lambda s: s.attitude_source == "drone" and s.velocity_source == "drone", 2.0)
+        fusing = arm.wait_status(lambda s: s.attitude_source == "drone" and s.velocity_source == "drone", ANY_STATUS_S)
         assert fusing is not None and fusing.header.frame_id == "arm_base"
         window = [f for t, f in arm.tap.attitudes[n0:]]
         rate = len(window) / (time.monotonic() - t0)     # measured, not judged: the machine's load sets it
@@ -478,10 +488,10 @@ def test_a_board_reset_mid_flight_is_an_error_and_by_default_it_is_enabled_again
     arm = start_arm(**({} if reenable else {"reenable": "false"}))
     assert arm.call("enable", True).success
     assert arm.call("engage", True).success
-    status = arm.wait_status(lambda s: s.engaged, 2.0)
+    status = arm.wait_status(lambda s: s.engaged, ANY_STATUS_S)
     assert status is not None and status.unexpected_resets == 0
     arm.sitl.reset("watchdog")
-    status = arm.wait_status(lambda s: s.unexpected_resets > 0, 3.0)
+    status = arm.wait_status(lambda s: s.unexpected_resets > 0, ANY_STATUS_S)
     assert status is not None, "the restart was not reported"
     assert status.unexpected_resets == 1 and status.reset_cause == "watchdog" and not status.engaged
     if reenable:
