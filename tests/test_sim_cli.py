@@ -226,8 +226,9 @@ def test_a_sweep_runs_every_combination_best_first(tmp_path, capsys):
     assert rc == 0
     rows = [l for l in capsys.readouterr().out.splitlines() if l.startswith("| estimator.")]
     assert len(rows) == 2
-    worst = [float(r.strip("| ").split(" | ")[-1]) for r in rows]
+    worst = [float(r.strip("| ").split(" | ")[-2]) for r in rows]
     assert worst == sorted(worst)                                     # best first
+    assert all(r.strip("| ").split(" | ")[-1] == "0 (0)" for r in rows)   # no drone messages: none refused
     assert "Command: `python -m uavarm.sim.sweep" in out.read_text()
 
 
