@@ -236,8 +236,11 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S, allo
     ask(f"Each joint will turn {np.degrees(LAG_JOG_RAD):.0f} deg and back at the park speed, one at a time, "
         "with nothing touching the arm. Keep clear and press Enter.")
     q = [hb["p1"], hb["p2"], hb["p3"]]   # the shafts as read
-    if not all(np.isfinite(q)):
-        raise CalibrationError("the servos' positions could not be read: check the servo bus and try again")
+    unread = [j for j, v in enumerate(q, 1) if not np.isfinite(v)]
+    if unread:
+        servos = " and ".join(f"joint {j}'s servo" for j in unread)
+        raise CalibrationError(f"{servos} could not be read (no position): is it plugged in and powered? "
+                               "check the servo bus and try again")
     fits = []
     with arm.kept_alive():
         arm.stream(servos=True)
