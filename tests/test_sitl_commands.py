@@ -143,10 +143,13 @@ def test_commands_typed_on_a_running_sitl_reach_its_board():
 
 @pytest.mark.realtime
 def test_uavarm_sitl_takes_commands_on_stdin_and_runs_on_after_eof():
-    proc = subprocess.Popen([sys.executable, "-m", "uavarm.cli", "sitl", "--speed", "2", "--servo-zeros",
-                             "520,497,505", "--servo-directions", "1,-1,1"],
+    # Ctrl-C as at a terminal: a run started in the background (`cmd &` in a script) ignores
+    # SIGINT, and its children would inherit that. (-X faulthandler: a SIGABRT makes it print
+    # every thread's stack, should it not end.)
+    proc = subprocess.Popen([sys.executable, "-X", "faulthandler", "-m", "uavarm.cli", "sitl", "--speed", "2",
+                             "--servo-zeros", "520,497,505", "--servo-directions", "1,-1,1"],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
 
     lines = queue.Queue()
     threading.Thread(target=lambda: [lines.put(text) for text in proc.stdout], daemon=True).start()
@@ -163,7 +166,12 @@ def test_uavarm_sitl_takes_commands_on_stdin_and_runs_on_after_eof():
         assert proc.poll() is None
     finally:
         os.killpg(proc.pid, signal.SIGINT)
-        proc.wait(timeout=30)
+        try:
+            proc.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            proc.send_signal(signal.SIGABRT)
+            proc.wait(timeout=30)
+            pytest.fail(f"uavarm sitl did not end within 30 s of Ctrl-C; its threads:\n{proc.stderr.read()}")
     assert "Traceback" not in proc.stderr.read()
 
 
