@@ -2,7 +2,9 @@
 on the simulated board running the whole firmware, level and still, the arm engaged:
 lies about the attitude and the velocity are refused, counted and flagged in the heartbeat
 while the estimate goes on without them, and honest data is taken back. The oracle is the
-plain truth: the board does not tilt, so any tilt in the estimate is the lie's doing.
+plain truth: the board does not tilt, so any tilt in the estimate is the lie's doing. The
+servos are the slowest the tests allow for (45 ms of lag, a 9.0 V supply sagging as they
+move), and their shafts are judged by plain geometry at every step (tests/invariants.py).
 """
 from __future__ import annotations
 
@@ -11,7 +13,8 @@ import math
 import numpy as np
 import pytest
 
-from simboard_tools import FAULT, make_board, ready, run_until
+from invariants import Invariants
+from simboard_tools import FAULT, make_board, ready
 from uavarm.link import messages
 from uavarm.model import config
 from uavarm.sim import closed_loop, scenarios
@@ -23,6 +26,7 @@ SOURCE = {name: 1 << i for i, (name, _) in enumerate(messages.SOURCES)}
 PERIOD = 0.02            # the drone's messages at 50 Hz
 DELAY = 0.02             # measured this long before they arrive
 DRONE_CLOCK_US = 3_000_000_000   # the drone's clock, far from the board's (it wraps in the run)
+SLOWEST_LAG, SLOWEST_SUPPLY = 0.045, 9.0   # s, V: the slowest servos the tests allow for
 
 
 class Drone:
@@ -30,8 +34,8 @@ class Drone:
     arriving DELAY after it was measured; `claim` says what it sends at a time (default: the
     truth, level and still)."""
 
-    def __init__(self, board, attitude=True, velocity=True):
-        self.board, self.attitude, self.velocity = board, attitude, velocity
+    def __init__(self, inv: Invariants, attitude=True, velocity=True):
+        self.inv, self.board, self.attitude, self.velocity = inv, inv.board, attitude, velocity
         self.seq = 0
         self.tilts: list[float] = []     # the estimate's tilt (deg) after each period
 
@@ -51,7 +55,7 @@ class Drone:
             self.seq += 1
             if k % 10 == 0:
                 self.board.send("set_position", **TARGET)   # the keep-alive
-            self.board.run(PERIOD)
+            self.inv.run(PERIOD)
             self.tilts.append(tilt_deg(self.board))
 
 
@@ -62,13 +66,15 @@ def tilt_deg(board) -> float:
 
 
 def engaged(**drone_kw) -> Drone:
-    """A level, still board, engaged at TARGET with 2 s of honest messages behind it."""
-    board = make_board()
+    """A level, still board on the slowest servos, engaged at TARGET with 2 s of honest
+    messages behind it; its shafts judged from then on (Invariants)."""
+    board = make_board(lag=SLOWEST_LAG, supply=SLOWEST_SUPPLY)
+    inv = Invariants(board)
     board.send("enable", on=1)
-    assert run_until(board, lambda: ready(board), 2.0) is not None
+    assert inv.run_until(lambda: ready(board), 2.0) is not None
     board.send("set_position", **TARGET)
     board.send("engage", on=1)
-    drone = Drone(board, **drone_kw)
+    drone = Drone(inv, **drone_kw)
     drone.fly(2.0)
     hb = board.heartbeats[-1]
     assert hb["engaged"] == 1 and hb["faults"] & (FAULT["drone_attitude_rejected"] | FAULT["drone_velocity_rejected"]) == 0
@@ -102,6 +108,7 @@ def test_a_25_deg_roll_claimed_on_a_level_board_is_refused_flagged_and_taken_bac
     faults, sources = flags(board)
     assert not faults & FAULT["drone_attitude_rejected"] and sources & SOURCE["drone_attitude"]
     assert stab.link.accepted > accepted and max(drone.tilts[-50:]) <= 3.0
+    assert drone.inv.shaft_steps > 10_000 and drone.inv.clearance > 0.0   # the shafts, judged
 
 
 def test_a_roll_jumping_20_deg_each_message_moves_the_estimate_at_most_3_deg():
@@ -113,6 +120,7 @@ def test_a_roll_jumping_20_deg_each_message_moves_the_estimate_at_most_3_deg():
     print(f"\n+-20 deg alternating: estimate's tilt at most {max(drone.tilts[-100:]):.3f} deg")
     assert max(drone.tilts[-100:]) <= 3.0
     assert flags(drone.board)[0] & FAULT["drone_attitude_rejected"]
+    assert drone.inv.shaft_steps > 10_000 and drone.inv.clearance > 0.0
 
 
 def test_velocity_stamps_running_ahead_ten_a_tick_ramping_just_under_a_jump_tilt_at_most_5_deg():
@@ -136,11 +144,11 @@ def test_velocity_stamps_running_ahead_ten_a_tick_ramping_just_under_a_jump_tilt
             seq += 1
         if tick % 10 == 0:
             board.send("set_position", **TARGET)
-        board.run(0.01)
+        drone.inv.run(0.01)
         tilts.append(tilt_deg(board))
     for _ in range(50):           # then silence but the keep-alive, a second
         board.send("set_position", **TARGET)
-        board.run(0.02)
+        drone.inv.run(0.02)
         tilts.append(tilt_deg(board))
     ahead = stab.vel.refused - stab.vel.disagreed - ahead
     print(f"\nvelocity stamps ahead: tilt at most {max(tilts):.3f} deg; {ahead} refused as ahead of the clock, "
@@ -148,6 +156,7 @@ def test_velocity_stamps_running_ahead_ten_a_tick_ramping_just_under_a_jump_tilt
     assert max(tilts) <= 5.0
     assert ahead >= 900
     assert stab.vel.rejections == 1 and board.heartbeats[-1]["faults"] & FAULT["drone_velocity_rejected"]
+    assert drone.inv.shaft_steps > 10_000 and drone.inv.clearance > 0.0
 
 
 @pytest.mark.parametrize("name", ["manoeuvre", "hover"])
