@@ -51,6 +51,9 @@ LINK_PLAUSIBLE_MM = 1.0
 AX12_BAUD_CLOCK = 2_000_000
 AX12_BAUD_REGISTER_MAX = 254
 BAUD_TOLERANCE = 0.03
+# The slowest heartbeat (s): the drone side counts a link silent after 1.5 s without one
+# and waits 1 s for one to confirm a command, so three and two must fit in those.
+HEARTBEAT_SLOWEST_S = 0.5
 
 # Every key of the model file, by table; the imu.accel_bias, imu.accel_scale,
 # imu.gyro_bias_dps, imu.gyro_scale, imu.gyro_cross_axis and servo.response_lag calibration may be absent. Any other key is refused (a typo would
@@ -393,7 +396,10 @@ def parse(raw: bytes, path: Path) -> Model:
     if return_delay % 2:
         raise r.fail("servo.return_delay_us", f"must be even (2 us steps), got {return_delay}")
     park = _three(r, "park.q")
-    heartbeat = r.number("link.heartbeat_period", positive=True, hi=60.0)
+    heartbeat = r.number("link.heartbeat_period", positive=True, hi=HEARTBEAT_SLOWEST_S)
+    if heartbeat < 1.0 / sample_rate or heartbeat * 1000.0 != round(heartbeat * 1000.0):
+        raise r.fail("link.heartbeat_period", f"must be whole milliseconds, at least one tick "
+                                              f"({1000.0 / sample_rate:g} ms), got {heartbeat}")
     filters = []
     for sensor in ("accel", "gyro"):
         cutoff = r.number(f"filters.{sensor}.cutoff", positive=True)

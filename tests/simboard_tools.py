@@ -328,6 +328,14 @@ def last_hb(board: SimBoard) -> dict:
     return board.heartbeats[-1]
 
 
+def heartbeat_showing(board: SimBoard, shows, within: float) -> dict:
+    """The first heartbeat from now on for which shows(hb) holds, within `within` s."""
+    n = len(board.heartbeats)
+    found = run_until(board, lambda: any(shows(hb) for hb in board.heartbeats[n:]), within, step=0.001)
+    assert found is not None, f"no heartbeat showed it within {within} s"
+    return next(hb for hb in board.heartbeats[n:] if shows(hb))
+
+
 def run_to_next_heartbeat(board: SimBoard) -> dict:
     n = len(board.heartbeats)
     period = MODEL.heartbeat_period

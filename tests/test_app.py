@@ -182,7 +182,7 @@ def test_engage_while_disabled_is_refused():
     assert hb["faults"] & FAULT["command_refused"]
     assert not board.power_log and not log.tx
     board.send("enable", on=1)
-    board.run(0.2)
+    board.run(0.6)          # the IMU's samples to settle: 0.5 s from power-up
     board.send("engage", on=1)
     hb = run_to_next_heartbeat(board)
     assert (hb["enabled"], hb["engaged"]) == (1, 1)
@@ -278,7 +278,7 @@ def test_heartbeat_period_fields_and_counters():
     push(frame[:9] + frame)                                        # restarted
     board.run(1.4)
     times = np.array(board.heartbeat_times)
-    assert len(times) == 4
+    assert len(times) == int(2.1 / HB + 1e-9)
     poll = board.poll_us / 1e6
     assert abs(times[0] - HB) <= poll + 1e-9
     assert np.all(np.abs(np.diff(times) - HB) <= poll + 1e-9), np.diff(times)

@@ -1,5 +1,10 @@
 """The `uavarm` command line."""
+import math
+
+import pytest
+
 from uavarm import cli
+from uavarm.link.messages import FAULTS
 
 
 def test_demo_reaches_engaged_state(capsys):
@@ -24,7 +29,7 @@ def demo_events(out: str) -> list[tuple[float, str]]:
 
 
 def test_demo_prints_in_simulated_time_order(capsys, model):
-    assert cli.main(["demo", "--seconds", "4"]) == 0
+    assert cli.main(["demo", "--seconds", "4", "--every", "0"]) == 0
     events = demo_events(capsys.readouterr().out)
     times = [t for t, _ in events]
     assert times == sorted(times) and times[-1] <= 4.0
@@ -36,8 +41,29 @@ def test_demo_prints_in_simulated_time_order(capsys, model):
         assert abs(t - k * model.heartbeat_period) <= 0.011
 
 
+def test_demo_prints_a_heartbeat_each_half_second_by_default(capsys, model):
+    assert cli.main(["demo", "--seconds", "4"]) == 0
+    beats = [t for t, arrow in demo_events(capsys.readouterr().out) if arrow == "<-"]
+    assert [math.floor(t / 0.5) for t in beats] == list(range(9))   # the first of each half second, to 4.00 s
+    with pytest.raises(SystemExit) as bad:
+        cli.main(["demo", "--seconds", "1", "--every", "-1"])
+    assert bad.value.code == 2 and "--every: must be zero or a positive number" in capsys.readouterr().err
+
+
+def test_a_line_for_many_heartbeats_says_the_faults_of_them_all():
+    lines = cli.HeartbeatLines(0.5)
+    hb = dict(seq=0, uptime_ms=0, enabled=1, engaged=0, unreachable=0, state=1, refusal=0, faults=0,
+              set_x=0.0, set_y=0.0, set_z=0.0, p1=0.0, p2=0.0, p3=0.0, q1=0.0, q2=0.0, q3=0.0,
+              estimate_sources=1, servo1_error=0, servo2_error=0, servo3_error=0, link_frames_ok=0,
+              link_errors=0, servo_timeouts=0, reset_cause=0, last_fault=0)
+    assert "faults []" in lines.line(0.04, hb)
+    assert lines.line(0.08, dict(hb, faults=1 << [n for n, _ in FAULTS].index("link_lost"))) is None
+    assert lines.line(0.12, hb) is None
+    assert "link_lost" in lines.line(0.52, hb)
+
+
 def test_demo_of_one_second_prints_what_happened(capsys, model):
-    assert cli.main(["demo", "--seconds", "1"]) == 0
+    assert cli.main(["demo", "--seconds", "1", "--every", "0"]) == 0
     events = demo_events(capsys.readouterr().out)
     assert events[0] == (0.0, "->")
     assert sum(arrow == "<-" for _, arrow in events) == int(1.0 / model.heartbeat_period)

@@ -417,6 +417,7 @@ def test_imu_reset_to_sleep_is_set_up_again():
     retry = 1.0                    # README: the chip is set up again every second
     inv.clear("imu", retry + 0.6)
     assert not board.imu.asleep and board.imu.accel_lsb_per_g == 8192
+    inv.run(0.5)                   # the IMU's 50 samples to settle after its restart
     board.send("engage", on=1)
     assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
 

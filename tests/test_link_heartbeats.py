@@ -1,12 +1,15 @@
-"""The drone side trusts only fresh heartbeats: the newest of a batch, none queued longer than a
-period, sequence gaps and board restarts counted. Heartbeats are built from the message table
+"""The drone side trusts only fresh heartbeats: the newest of a batch, none queued longer than
+half a second, sequence gaps and board restarts counted; a command is judged only by the
+heartbeats the board sent after it took it. Heartbeats are built from the message table
 and framed by LLCP, as the board sends them; the port is a stand-in that hands out what is
 queued."""
+import math
+
 import pytest
 
 from uavarm.link import llcp, messages
 from uavarm.link import ArmLink, CommandRefused, HeartbeatAge, LinkGarbled, LinkLate, LinkSilent
-from uavarm.link.client import KEEP_ALIVE_S, RestartWatch
+from uavarm.link.client import COMMAND_PING_SEQ, CONFIRM_S, KEEP_ALIVE_S, RestartWatch
 from uavarm.model import config
 
 PERIOD = config.load().heartbeat_period
@@ -55,17 +58,96 @@ def test_a_port_opened_after_an_hour_gives_the_newest_heartbeat_only():
     assert [h["seq"] for h in arm.heartbeats] == [12]
 
 
+def pong(seq):
+    return llcp.encode(messages.encode("pong", seq=seq, stamp_us=0, arrived_us=0))
+
+
+def written(port, name):
+    """The fields of each `name` frame written to a stand-in port."""
+    return [f for n, f in sent_frames(port) if n == name]
+
+
 def test_an_engage_refused_now_is_not_confirmed_by_queued_engaged_heartbeats():
     old = b"".join(heartbeat(i, i * 300_000, enabled=1, engaged=1) for i in range(12))
     now = heartbeat(12, HOUR_MS, enabled=1, engaged=0, refusal=SERVO_FAULT, faults=1)
-    later = heartbeat(13, HOUR_MS + 500, enabled=1, engaged=0, refusal=SERVO_FAULT, faults=1)
-    arm = ArmLink(QueuedPort(old + now, b"", later), silence=0.2)
+    later = heartbeat(13, HOUR_MS + 40, enabled=1, engaged=0, refusal=SERVO_FAULT, faults=1)
+    arm = ArmLink(QueuedPort(old + now, b"", pong(COMMAND_PING_SEQ) + later), silence=0.2)
     with pytest.raises(CommandRefused, match="engage refused: .*servo does not answer.*servo_timeout"):
         arm.engage()
 
 
+def test_a_command_is_judged_only_by_heartbeats_after_the_pong_that_follows_it():
+    """A heartbeat the board sent before it took the command (here: no refusal, engaged) does
+    not judge it, however late it is read: only those after the pong of the ping sent behind
+    the command do. The board takes frames in order, so that pong says it took the command."""
+    before = heartbeat(1, 1_000, enabled=1, engaged=1)
+    after = heartbeat(2, 1_040, enabled=1, engaged=0, refusal=NOT_ENABLED)
+    port = QueuedPort(before, b"", pong(COMMAND_PING_SEQ) + after)
+    arm = ArmLink(port, clock=Clock(step=0.001))
+    with pytest.raises(CommandRefused, match="torque refused"):
+        arm.torque(False)
+    assert [n for n, _ in sent_frames(port)] == ["torque", "ping"]
+    assert written(port, "ping")[0]["seq"] == COMMAND_PING_SEQ
+
+
+class PingingBoard(QueuedPort):
+    """A board on `clock`: a heartbeat every 40 ms of it (engaged from `engaged_at` s), and a
+    pong for each ping written, after the heartbeats sent before it, unless its seq is lost."""
+
+    def __init__(self, clock, engaged_at, lose=()):
+        super().__init__()
+        self.clock, self.start, self.sent, self.out = clock, clock.t, 0, b""
+        self.engaged_at, self.lose = engaged_at, set(lose)
+
+    def _catch_up(self):
+        while (self.sent + 1) * 0.040 <= self.clock.t - self.start:
+            self.sent += 1
+            self.out += heartbeat(self.sent, 40 * self.sent, enabled=1,
+                                  engaged=int(self.sent * 0.040 >= self.engaged_at))
+
+    def write(self, data):
+        self._catch_up()
+        for name, f in sent_frames(_Written(data)):
+            if name == "ping" and f["seq"] not in self.lose:
+                self.out += pong(f["seq"])
+        return super().write(data)
+
+    def read(self, n):
+        self._catch_up()
+        out, self.out = self.out, b""
+        return out
+
+
+class _Written:
+    def __init__(self, data):
+        self.written = [data]
+
+
+def test_a_lost_pong_is_asked_again_and_a_command_shown_within_a_second_is_confirmed():
+    """The first ping's answer never comes (lost to noise): after PING_AGAIN_S a second ping
+    goes, its pong comes, and the heartbeats after it judge the engage, shown about 0.6 s of
+    the board's time later (the arm was parking first)."""
+    clock = Clock(step=0.002)
+    board = PingingBoard(clock, engaged_at=0.9, lose={COMMAND_PING_SEQ})
+    arm = ArmLink(board, clock=clock)
+    arm.next_heartbeat()
+    hb = arm.engage()
+    assert hb["engaged"] == 1 and hb["seq"] == 23            # the first at or after 0.9 s: 23 x 40 ms
+    assert [p["seq"] for p in written(board, "ping")] == [COMMAND_PING_SEQ, COMMAND_PING_SEQ + 1]
+
+
+def test_a_command_not_shown_within_a_second_of_the_boards_time_is_refused():
+    clock = Clock(step=0.002)
+    board = PingingBoard(clock, engaged_at=math.inf)
+    arm = ArmLink(board, clock=clock)
+    with pytest.raises(CommandRefused, match="engage 1 not taken"):
+        arm.engage()
+    first = next(hb for hb in arm.heartbeats if hb["frame"] > 1)      # frame 1: the pong
+    assert arm.heartbeats[-1]["uptime_ms"] - first["uptime_ms"] == 1_000 * CONFIRM_S
+
+
 def test_a_heartbeat_delivered_late_is_dropped_and_counted():
-    age = HeartbeatAge(period=0.5)
+    age = HeartbeatAge(stale_after=0.5)
     fresh = age.fresh([{"seq": 0, "uptime_ms": 10_000}], now=100.0)
     assert [hb["age"] for hb in fresh] == [0.0]
     # seq 1 sent at uptime 10.5 s but read 1.2 s later than the board's clock allows
@@ -78,7 +160,7 @@ def test_a_heartbeat_delivered_late_is_dropped_and_counted():
 
 
 def test_clocks_apart_by_1000_ppm_do_not_age_fresh_heartbeats():
-    age = HeartbeatAge(period=0.5)
+    age = HeartbeatAge(stale_after=0.5)
     kept = 0
     for i in range(7200):                       # an hour; the board's clock runs 0.1 % slow
         uptime_s = i * 0.5
@@ -87,7 +169,7 @@ def test_clocks_apart_by_1000_ppm_do_not_age_fresh_heartbeats():
 
 
 def test_sequence_gaps_and_restarts_are_counted_and_a_restart_starts_the_ages_over():
-    age = HeartbeatAge(period=0.5)
+    age = HeartbeatAge(stale_after=0.5)
     age.fresh([{"seq": 0, "uptime_ms": 5_000}, {"seq": 1, "uptime_ms": 5_500}], now=50.5)
     age.fresh([{"seq": 4, "uptime_ms": 7_000}], now=52.0)
     assert (age.lost, age.restarts) == (2, 0)
@@ -97,7 +179,7 @@ def test_sequence_gaps_and_restarts_are_counted_and_a_restart_starts_the_ages_ov
 
 
 def test_sequence_and_uptime_wrap_are_not_restarts():
-    age = HeartbeatAge(period=0.5)
+    age = HeartbeatAge(stale_after=0.5)
     age.fresh([{"seq": 0xFFFF, "uptime_ms": 0xFFFF_FF00}], now=10.0)
     kept = age.fresh([{"seq": 0, "uptime_ms": 0x0000_00F4}], now=10.5)
     assert (age.lost, age.restarts, len(kept)) == (0, 0, 1)
@@ -143,14 +225,14 @@ def test_a_board_whose_clock_runs_slow_is_not_late_while_the_port_is_read():
 
 
 def test_late_heartbeats_are_told_from_garbled_bytes_and_silence():
-    """The same board's port read only every 0.8 s: its heartbeats, older than a period by
-    then, come but none is trusted; the client says so (LinkLate, how late), not "wrong baud
+    """The same board's port read only every 0.8 s: its heartbeats, older than half a second
+    by then, come but none is trusted; the client says so (LinkLate, how late), not "wrong baud
     or device" (bytes that are no frame) nor "no heartbeat" (nothing at all)."""
     clock = Clock(step=0.4)                  # two readings a poll
     arm = ArmLink(SlowBoard(clock, rate=0.4), clock=clock, silence=3.0)
     arm.next_heartbeat()
     with pytest.raises(LinkLate, match=r"heartbeat\(s\) in 3\.0 s but each too late to trust \(the last "
-                                       r"[\d.]+ s old, more than a 0.5 s period\): this computer reads the port "
+                                       r"[\d.]+ s old, more than 0.5 s\): this computer reads the port "
                                        r"too seldom"):
         for _ in range(10):
             arm.next_heartbeat()

@@ -119,14 +119,15 @@ def test_a_port_that_vanishes_mid_session_ends_it_with_one_line(sitl):
 
 # ---------------------------------------------------------------- a board that restarts
 
-def reset_once_engaged(sitl):
-    """Resets the SITL's chip (its watchdog) once a heartbeat says the arm is engaged."""
+def reset_once_engaged(sitl, out):
+    """Resets the SITL's chip (its watchdog) once the shell said its engage was taken (on
+    `out`): the event, not a time."""
     def run():
         end = sitl.clock() + 30
-        while not (sitl.board.heartbeats and sitl.board.heartbeats[-1]["engaged"]):
+        while "engage: ok" not in out.getvalue():
             if sitl.clock() > end:
                 return
-            time.sleep(0.01)                                   # (until the board's heartbeat says so)
+            time.sleep(0.01)                                   # (a poll of the shell's output)
         sitl.reset("watchdog")
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
@@ -148,8 +149,8 @@ def test_a_board_reset_mid_script_ends_it_with_an_error_and_enables_it_again(sit
     """Engaged, then the board's watchdog resets it: the script ends at the line it was on
     with the restart named, and the board is enabled again, so it parks with the torque on
     (not engaged: never engaged again by the shell)."""
-    reset = reset_once_engaged(sitl)
     out, err = io.StringIO(), io.StringIO()
+    reset = reset_once_engaged(sitl, out)
     code = run_shell(sitl.device, 115200, ["enable", "engage", "wait 20", "status"], interactive=False,
                      out=out, err=err, clock=sitl.clock)
     reset.join(timeout=5)
@@ -166,15 +167,16 @@ def test_a_board_reset_mid_script_ends_it_with_an_error_and_enables_it_again(sit
     assert torque_on_everywhere(sitl) and sitl.board.servo_power
 
 
-def test_at_a_prompt_a_board_reset_is_said_at_once_and_with_no_reenable_left_off(sitl, capsys):
+def test_at_a_prompt_a_board_reset_is_said_at_once_and_with_no_reenable_left_off(sitl):
     """The same reset at a prompt: said on the spot (the session goes on); with reenable off
     the board stays disabled, its servo supply off."""
-    reset = reset_once_engaged(sitl)
+    out, err = io.StringIO(), io.StringIO()
+    reset = reset_once_engaged(sitl, out)
     m = config.load()
     assert run_shell(sitl.device, 115200, ["enable", "engage", f"wait {3 * m.link_silence_timeout}", "status"],
-                     interactive=True, clock=sitl.clock, reenable=False) == 0
+                     interactive=True, out=out, err=err, clock=sitl.clock, reenable=False) == 0
     reset.join(timeout=5)
-    out, err = capsys.readouterr()
+    out, err = out.getvalue(), err.getvalue()
     assert re.search(r"^error: the board restarted while enabled \(reset cause watchdog, .*; it was engaged; "
                      r"left so \(--no-reenable\)$", err, re.M), err
     assert "status: ok" in out

@@ -229,7 +229,10 @@ NO_CROSS = "gyro_cross_axis = [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
     ("q = [0.0, 60.0, -110.0]", 'q = [0.0, "60", -110.0]', "park.q[1]", "finite number"),
     ("q = [0.0, 60.0, -110.0]", "q = 60.0", "park.q", "expected a list"),
     ("silence_timeout = 1.0", "silence_timeout = 0.01", "link.silence_timeout", ">= 0.02"),
-    ("heartbeat_period = 0.5", "heartbeat_period = 0.0", "link.heartbeat_period", "positive"),
+    ("heartbeat_period = 0.04", "heartbeat_period = 0.0", "link.heartbeat_period", "positive"),
+    ("heartbeat_period = 0.04", "heartbeat_period = 0.6", "link.heartbeat_period", "<= 0.5"),
+    ("heartbeat_period = 0.04", "heartbeat_period = 0.005", "link.heartbeat_period", "at least one tick (10 ms)"),
+    ("heartbeat_period = 0.04", "heartbeat_period = 0.0405", "link.heartbeat_period", "whole milliseconds"),
     ("frame_gap = 0.05", "frame_gap = 0", "link.frame_gap", "positive"),
     ("transit_speed_rpm = 30.0", "transit_speed_rpm = 0.0", "servo.transit_speed_rpm", ">= 0.111"),
     ("transit_speed_rpm = 30.0", "", "servo.transit_speed_rpm", "missing"),
@@ -274,7 +277,7 @@ def test_new_keys_load(model):
     m = model.motion
     assert (m.axis_hold_radius, m.axis_release_radius, m.follow_window_deg, m.stretch_margin) == (3.0, 5.0, 90.0, 1.0)
     assert model.park_deg == (0.0, 60.0, -110.0)
-    assert (model.link_silence_timeout, model.heartbeat_period, model.link_frame_gap) == (1.0, 0.5, 0.05)
+    assert (model.link_silence_timeout, model.heartbeat_period, model.link_frame_gap) == (1.0, 0.04, 0.05)
     assert (model.imu_address, model.accel_range_g, model.gyro_range_dps, model.dlpf_bandwidth) == \
         (0x68, 4, 500, 21)
     assert model.imu_mounting_rpy_deg == (0.0, 0.0, 0.0)
@@ -362,7 +365,7 @@ PARAMS_VARIANT = {
     "boot_time = 0.1": "boot_time = 0.25",
     "q = [0.0, 60.0, -110.0]": "q = [0.0, 90.0, -30.5]",
     "silence_timeout = 1.0": "silence_timeout = 0.75",
-    "heartbeat_period = 0.5": "heartbeat_period = 0.2",
+    "heartbeat_period = 0.04": "heartbeat_period = 0.2",
     "frame_gap = 0.05": "frame_gap = 0.02",
     "complementary_gyro_weight = 0.95": "complementary_gyro_weight = 0.98",
     "velocity_bandwidth = 0.25": "velocity_bandwidth = 0.4",

@@ -13,7 +13,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from simboard_tools import (
     FAULT, IDS, INST_READ, INST_SYNC_WRITE, INST_WRITE, MODEL, PARK_SPEED, PARK_UNITS, TICK,
-    UNIT_RANGE, BusLog, make_board, run_until, run_to_next_heartbeat, ready, running, sdk_rebuild,
+    UNIT_RANGE, BusLog, heartbeat_showing, make_board, run_until, run_to_next_heartbeat, ready, running, sdk_rebuild,
     servo_c, sync_goal_speed,
 )
 from test_fault_injection import ReplyTap, with_error
@@ -250,8 +250,7 @@ def test_silent_servo_times_out_is_retried_and_recovers(how):
     before = (servo_c(board, j).timeouts, servo_c(board, j).retries)
     t_fault = board.time
     s = silence(board, id_, how)
-    hb = run_to_next_heartbeat(board)
-    assert hb["faults"] & FAULT["servo_timeout"], hb
+    hb = heartbeat_showing(board, lambda hb: hb["faults"] & FAULT["servo_timeout"], 0.5)
     assert hb["servo_timeouts"] > 0
     c = servo_c(board, j)
     assert c.timeouts > before[0] and c.retries > before[1] and c.failed
@@ -266,8 +265,7 @@ def test_silent_servo_times_out_is_retried_and_recovers(how):
 
     restore(board, s, how)
     t_back = board.time
-    hb = run_to_next_heartbeat(board)
-    assert not hb["faults"] & FAULT["servo_timeout"], hb
+    hb = heartbeat_showing(board, lambda hb: not hb["faults"] & FAULT["servo_timeout"], 0.5)
     assert not servo_c(board, j).failed
     assert [r for r in log.replies if r.start > t_back and r.raw[2] == id_]
     # the total only grows

@@ -11,6 +11,23 @@ from pathlib import Path
 
 DEMO_ENGAGE_S = 1.5        # `uavarm demo`: set position and engage this long after enable
 DEMO_KEEP_ALIVE_S = 0.25   # ... then the set position again at this period
+LINE_EVERY_S = 0.5         # demo, monitor: a heartbeat line at most this often by default
+
+
+class HeartbeatLines:
+    """Heartbeats for a person to read: the first of each `every`-second window of their
+    times (0: every one), its faults those of all the heartbeats since the last line."""
+
+    def __init__(self, every: float):
+        self.every, self.window, self.faults = every, None, 0
+
+    def line(self, at: float, hb: dict) -> str | None:
+        self.faults |= hb["faults"]
+        window = math.floor(at / self.every + 1e-6) if self.every > 0 else at
+        if window == self.window:
+            return None
+        self.window, faults, self.faults = window, self.faults, 0
+        return _heartbeat_line(dict(hb, faults=faults))
 
 
 def demo(args) -> int:
@@ -26,26 +43,32 @@ def demo(args) -> int:
     while t < args.seconds:      # repeated, unprinted: an engaged arm parks when the link is silent
         commands.append((t, "keep-alive", target))
         t += DEMO_KEEP_ALIVE_S
-    shown = -1.0
+    shown, lines = -1.0, HeartbeatLines(args.every)
+
+    def run_until(at):
+        """Run to `at` s, printing the heartbeats on the way (the board keeps only its last ten)."""
+        while board.time < at:
+            board.run_until_us(round(min(at, board.time + DEMO_KEEP_ALIVE_S) * 1e6))
+            print_heartbeats()
 
     def print_heartbeats():
         nonlocal shown
         for at, hb in zip(board.heartbeat_times, board.heartbeats):
             if at > shown:
-                print(f"{at:6.2f} s  <- {_heartbeat_line(hb)}")
                 shown = at
+                line = lines.line(at, hb)
+                if line:
+                    print(f"{at:6.2f} s  <- {line}")
     for at, name, fields in commands:
         if at > args.seconds:
             break
-        board.run_until_us(round(at * 1e6))
-        print_heartbeats()
+        run_until(at)
         if name == "keep-alive":
             board.send("set_position", **fields)
             continue
         board.send(name, **fields)
         print(f"{board.time:6.2f} s  -> {name} {fields}")
-    board.run_until_us(round(args.seconds * 1e6))
-    print_heartbeats()
+    run_until(args.seconds)
     return 0
 
 
@@ -72,9 +95,12 @@ def link(args) -> int:
             return _shell(args)
         with ArmLink(args.port, args.baud) as arm:
             if args.action == "monitor":
+                lines = HeartbeatLines(args.every)
                 while True:
                     hb = arm.next_heartbeat()
-                    print(_heartbeat_line(hb), flush=True)
+                    line = lines.line(hb["uptime_ms"] / 1000.0, hb)
+                    if line:
+                        print(line, flush=True)
                     if args.keep_alive:
                         arm.keep_alive()
             action = {
@@ -146,6 +172,9 @@ def _integer(lo: int):
 
 FINITE = _number(lambda v: True, "must be a finite number")
 POSITIVE = _number(lambda v: v > 0, "must be a positive number")
+NON_NEGATIVE = _number(lambda v: v >= 0, "must be zero or a positive number")
+EVERY_HELP = ("print a heartbeat at most every S seconds of the board's clock, with the faults of those "
+              "skipped (default: %(default)s; 0: every heartbeat, link.heartbeat_period apart)")
 NOT_NEGATIVE = _number(lambda v: v >= 0, "must be a number >= 0")
 SUPPLY_VOLTS = _number(lambda v: 6 <= v <= 14, "must be a voltage from 6 to 14 (the servos' supply limits)")
 
@@ -180,6 +209,7 @@ def parser() -> argparse.ArgumentParser:
     d.add_argument("--seconds", type=POSITIVE, default=4.0,
                    help=f"simulated seconds to run (default: %(default)s); enable at 0 s, set position and "
                         f"engage at {DEMO_ENGAGE_S} s, the set position repeated every {DEMO_KEEP_ALIVE_S} s")
+    d.add_argument("--every", type=NON_NEGATIVE, default=LINE_EVERY_S, metavar="S", help=EVERY_HELP)
     lk = sub.add_parser("link", help="command a board (or a SITL) over its serial port")
     lk.add_argument("port", help="serial device, e.g. /dev/ttyACM0 or the path `uavarm sitl` prints")
     lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor",
@@ -206,6 +236,7 @@ def parser() -> argparse.ArgumentParser:
                     help="shell: a board that restarts while enabled after a watchdog reset or a fault (it "
                          "comes up limp) is reported but not enabled again (default: enabled again, so it "
                          "parks; never engaged again)")
+    lk.add_argument("--every", type=NON_NEGATIVE, default=LINE_EVERY_S, metavar="S", help="monitor: " + EVERY_HELP)
     lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")

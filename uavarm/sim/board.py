@@ -29,6 +29,8 @@ from .imu_model import Mpu6050Sensor
 from .mpu6050_sim import Mpu6050
 
 US = 1_000_000
+# heartbeats a board that does not record keeps (40 s at 25 Hz): the SITL's tests look back
+HEARTBEATS_KEPT = 1000
 
 
 @dataclass
@@ -166,7 +168,7 @@ class SimBoard:
     per joint, at the bus's baud, resting at their centre); motion: Gravity (default: level
     and still), Rocking, Turning, or any object with attitude(t) and imu(t); start_us: the firmware clock's value at t = 0 (to exercise its wrap-around);
     poll_us: main-loop period; record: keep every servo byte and command (tests) or only
-    the last heartbeats (long runs such as the SITL); servo_lag: the default servos' shaft
+    the last HEARTBEATS_KEPT heartbeats (long runs such as the SITL); servo_lag: the default servos' shaft
     lag behind their speed-limited profile (s, first order, stopping within the compliance
     margin; 0: none; None: the model file's servo.response_lag); supply: the servos' supply
     (ax12_sim.Supply, or its open-circuit volts; default a 3S battery at 11.1 V that sags as
@@ -351,7 +353,7 @@ class SimBoard:
                 elif name in self.streamed:
                     self.streamed[name].append(fields)
             if not self.record:
-                del self.heartbeats[:-10], self.heartbeat_times[:-10]
+                del self.heartbeats[:-HEARTBEATS_KEPT], self.heartbeat_times[:-HEARTBEATS_KEPT]
                 for frames in self.streamed.values():
                     del frames[:-1000]
 

@@ -6,18 +6,23 @@
         arm.engage()
         print(arm.status())
 
-Every command is confirmed by the heartbeats (sent every 0.5 s): the call returns when a
-heartbeat shows the command took effect, raises CommandRefused when the board's flags say
-why it did not, and LinkSilent when no heartbeat comes at all (LinkGarbled: bytes come but
-no valid frame; LinkLate: valid heartbeats come, all too late to trust). An engaged, limp or
-jogged arm parks if the link is silent for the model's link.silence_timeout (a ping does not
-count), so a drone keeps sending: `keep_alive()` repeats the current set position (only while
+Every command is confirmed by the heartbeats (sent every link.heartbeat_period of the model
+file): a ping follows it, and the board, which takes frames in order, answers the ping once it
+has taken the command, so only heartbeats that come after that pong judge it. The call returns
+when such a heartbeat shows the command took effect, raises CommandRefused when the board's
+flags say why it did not (or none shows it within CONFIRM_S of the board's time), and
+LinkSilent when no heartbeat comes for SILENCE_S (LinkGarbled: bytes come but no valid frame;
+LinkLate: valid heartbeats come, all too late to trust). No rule counts heartbeats, so they
+hold at any heartbeat period.
+
+An engaged, limp or jogged arm parks if the link is silent for the model's
+link.silence_timeout (a ping does not count), so a drone keeps sending: `keep_alive()` repeats the current set position (only while
 no new target is being set), and within `with arm.kept_alive():` every poll does so once
 nothing was sent for KEEP_ALIVE_S (the calibrations on the bench).
 
 Only fresh heartbeats count: each carries a sequence number and the board's uptime, and one
-that arrives more than a heartbeat period later than the board's clock says it should (queued
-while no one read the port) is dropped and counted, never used to confirm a command. None can
+that arrives more than STALE_S later than the board's clock says it should (queued while no
+one read the port) is dropped and counted, never used to confirm a command. None can
 have waited longer than since the port was last read empty, so a board whose clock runs slow
 (a simulated board behind real time) is not taken for one whose heartbeats queued. Gaps in
 the sequence and board restarts (uptime going back) are counted too; RestartWatch tells the
@@ -36,7 +41,6 @@ import time
 from collections import deque
 
 from . import llcp, messages
-from .message_table import HEARTBEAT_PERIOD_S
 from .messages import fault_names, fault_vector_name, refusal_reason, reset_cause_name
 
 try:
@@ -45,8 +49,18 @@ except ImportError:      # (not POSIX)
     class _TermiosError(Exception):
         pass
 
-# a command is judged on the heartbeats that follow it: the first may predate it
-CONFIRM_HEARTBEATS = 2
+# s: a heartbeat that arrives this much later than the board's clock says it was sent waited
+# in the port's buffer (this computer read it too seldom): dropped as stale
+STALE_S = 0.5
+# s without a fresh heartbeat that count as a dead link (ArmLink's default)
+SILENCE_S = 1.5
+# s of the board's time after it took a command within which a heartbeat must show the
+# command took effect (enable waits for the servos to be configured: about 0.3 s)
+CONFIRM_S = 1.0
+# s: a command's ping not answered by then (a frame lost to noise) is sent again
+PING_AGAIN_S = 0.25
+# the pings that follow commands count from here (uavarm calibrate link counts from 0)
+COMMAND_PING_SEQ = 0xC000
 # bytes taken from the port in one poll at most (about 400 heartbeats)
 READ_LIMIT = 65536
 # s between keep-alives: the board parks an engaged, limp or jogged arm after
@@ -54,6 +68,8 @@ READ_LIMIT = 65536
 KEEP_ALIVE_S = 0.2
 # enable's value for the bench, and the heartbeat's enabled then (model/messages.py)
 BENCH = 2
+STARTING = [name for name, _ in messages.STATES].index("starting")
+IMU_NOT_READY = [name for name, _ in messages.REFUSALS].index("imu_not_ready")
 # the resets a board does not mean (heartbeat.reset_cause): an enabled arm comes up limp
 UNMEANT_RESETS = ("watchdog", "window_watchdog")
 
@@ -80,16 +96,25 @@ class LinkGarbled(LinkSilent):
 
 
 class LinkLate(LinkSilent):
-    """Valid heartbeats arrive, but each more than a period after it was sent: they waited in
+    """Valid heartbeats arrive, but each more than STALE_S after it was sent: they waited in
     the port's buffer (this computer reads it too seldom)."""
 
 
 class CommandRefused(LinkError):
-    """The board refused a command; the message says why."""
+    """The board refused a command; the message says why, `heartbeat` shows it."""
+
+    def __init__(self, why: str, heartbeat: dict | None = None):
+        super().__init__(why)
+        self.heartbeat = heartbeat
 
 
 def _f32(v: float) -> float:
     return struct.unpack("<f", struct.pack("<f", v))[0]
+
+
+def _ms_since(first_ms: int, hb: dict) -> int:
+    """Milliseconds of the board's time from first_ms (an uptime_ms) to heartbeat hb."""
+    return (hb["uptime_ms"] - first_ms) & 0xFFFFFFFF
 
 
 def _expected_len(msg_id: int) -> int:
@@ -109,18 +134,18 @@ class HeartbeatAge:
 
     DRIFT = 1e-3
 
-    def __init__(self, period: float):
-        self.period = period
+    def __init__(self, stale_after: float = STALE_S):
+        self.stale_after = stale_after
         self.floor = None          # the least (arrival - uptime) seen, s
         self.floor_at = 0.0
         self.last = None           # (seq, uptime_ms, board time in s) of the last heartbeat
         self.lost = 0              # heartbeats missing from the sequence
-        self.stale = 0             # heartbeats dropped as older than one period
+        self.stale = 0             # heartbeats dropped as older than stale_after
         self.stale_age = 0.0       # the age of the last one dropped (s)
         self.restarts = 0          # the board's uptime went back: it restarted
 
     def fresh(self, batch: list[dict], now: float, read_gap: float | None = None) -> list[dict]:
-        """The heartbeats of one read that are at most one period old, each with its 'age' (s);
+        """The heartbeats of one read that are at most stale_after old, each with its 'age' (s);
         read_gap: seconds since the port was last read empty (None: not known)."""
         if not batch:
             return []
@@ -135,7 +160,7 @@ class HeartbeatAge:
             hb["age"] = offset - self.floor
             if read_gap is not None:
                 hb["age"] = min(hb["age"], read_gap + max(0.0, times[-1] - t))
-            if hb["age"] > self.period:
+            if hb["age"] > self.stale_after:
                 self.stale += 1
                 self.stale_age = hb["age"]
             else:
@@ -191,15 +216,11 @@ class RestartWatch:
 
 class ArmLink:
     """port: a device path (or a pyserial URL, or an open serial object for tests); silence:
-    seconds without a heartbeat that count as a dead link (default: three heartbeat periods
-    of the model file)."""
+    seconds without a fresh heartbeat that count as a dead link."""
 
-    def __init__(self, port, baud: int = 115200, *, silence: float | None = None, clock=time.monotonic):
+    def __init__(self, port, baud: int = 115200, *, silence: float = SILENCE_S, clock=time.monotonic):
         import serial
-        period = HEARTBEAT_PERIOD_S
         self.clock = clock
-        if silence is None:
-            silence = 3 * period
         if isinstance(port, str):
             try:
                 self.serial = serial.serial_for_url(port, baudrate=baud, timeout=0)
@@ -208,7 +229,7 @@ class ArmLink:
         else:
             self.serial = port
         self.silence = silence
-        self.age = HeartbeatAge(period)
+        self.age = HeartbeatAge()
         self.decoder = llcp.Decoder(gap=0.1, expected_len=_expected_len)
         self.heartbeats: deque[dict] = deque(maxlen=100)
         self.streamed: dict[str, deque] = {"imu_raw": deque(maxlen=10_000), "servo_status": deque(maxlen=10_000)}
@@ -219,6 +240,9 @@ class ArmLink:
         self.keep_alive_every = None   # s: each poll repeats the set position after this long unsent
         self._attitude_seq = 0
         self._velocity_seq = 0
+        self.frames_in = 0           # valid frames received: a heartbeat's 'frame' is its number
+        self._pings_sent = 0         # pings that followed commands
+        self._answered: dict[int, int | None] = {}   # such a ping's seq: its pong's frame number
 
     def close(self) -> None:
         self.serial.close()
@@ -247,12 +271,16 @@ class ArmLink:
         batch = []
         for payload in self.decoder.feed(data, now):
             name, fields = messages.decode(payload)
+            self.frames_in += 1
             if name == "heartbeat":
+                fields["frame"] = self.frames_in
                 batch.append(fields)
             elif name in self.streamed:
                 self.streamed[name].append(fields)
             elif name == "pong":
                 self.pongs.append((fields, now))
+                if self._answered.get(fields["seq"], 0) is None:
+                    self._answered[fields["seq"]] = self.frames_in
         new = self.age.fresh(batch, now, read_gap)
         self.heartbeats.extend(new)
         if self.keep_alive_every is not None and now - self.last_sent >= self.keep_alive_every:
@@ -293,7 +321,7 @@ class ArmLink:
         n_bytes, stale, checksum, bad = (now - before for now, before in zip(self.counts(), since))
         if stale:
             return LinkLate(f"{stale} heartbeat(s) in {timeout:.1f} s but each too late to trust (the last "
-                            f"{self.age.stale_age:.1f} s old, more than a {self.age.period:g} s period): this "
+                            f"{self.age.stale_age:.1f} s old, more than {self.age.stale_after:g} s): this "
                             "computer reads the port too seldom (too busy?)")
         if n_bytes:
             return LinkGarbled(f"{n_bytes} bytes in {timeout:.1f} s but no valid heartbeat (checksum errors "
@@ -317,43 +345,85 @@ class ArmLink:
         if name != "ping":               # (a ping keeps nothing alive)
             self.last_sent = self.clock()
 
-    def _confirm(self, ok, why) -> dict:
-        """Wait for a heartbeat satisfying ok(hb); CommandRefused with why(hb) otherwise."""
-        hb = None
-        for _ in range(CONFIRM_HEARTBEATS):
+    def _ping_after_command(self) -> int:
+        """Ping the board; its pong comes once every frame sent before it has been taken."""
+        seq = COMMAND_PING_SEQ | self._pings_sent & 0x3FFF
+        self._pings_sent += 1
+        self._answered[seq] = None
+        self.ping(seq)
+        return seq
+
+    def _after_command(self) -> dict:
+        """The first fresh heartbeat the board sent after it took the command just sent: one
+        that came after the pong of a ping that followed the command (pinged again every
+        PING_AGAIN_S, for a frame lost to noise)."""
+        seqs, asked = [self._ping_after_command()], self.clock()
+        try:
+            while True:
+                hb = self.next_heartbeat()
+                answers = [self._answered[s] for s in seqs if self._answered[s] is not None]
+                if answers and hb["frame"] > min(answers):
+                    return hb
+                if self.clock() - asked >= PING_AGAIN_S:
+                    seqs.append(self._ping_after_command())
+                    asked = self.clock()
+        finally:
+            for s in seqs:
+                del self._answered[s]
+
+    def _confirm(self, ok, why, refused=lambda hb: hb["refusal"]) -> dict:
+        """Wait for a heartbeat the board sent after it took the command that satisfies ok(hb);
+        CommandRefused with why(hb) at the first that shows it refused (each command sets the
+        heartbeat's refusal afresh), or if none shows it within CONFIRM_S of the board's time."""
+        return self._until(self._after_command(), ok, why, refused)
+
+    def _until(self, hb: dict, ok, why, refused=lambda hb: False) -> dict:
+        """From hb on, the first heartbeat that satisfies ok(hb), within CONFIRM_S of the board's
+        time; CommandRefused with why(hb) at one that shows refused(hb) or after that."""
+        first_ms = hb["uptime_ms"]
+        while not ok(hb):
+            if refused(hb) or _ms_since(first_ms, hb) >= CONFIRM_S * 1000:
+                raise CommandRefused(why(hb), hb)
             hb = self.next_heartbeat()
-            if ok(hb):
-                return hb
-        raise CommandRefused(why(hb))
+        return hb
 
     def enable(self, on: bool = True, *, limp: bool = False) -> dict:
         """enable 1 is taken once the servos are configured (the heartbeat's state past
-        "starting"), so an engage may follow at once. limp: enable 2, the bench (to calibrate
+        "starting"), so an engage may follow at once (on a board up for half a second: before,
+        its IMU is still settling and engage is refused as imu_not_ready). limp: enable 2, the bench (to calibrate
         the servos): configured with the torque off, the arm limp where it hangs; the board
         never moves it on its own, and engage is refused, until enable (1) parks it."""
         value = BENCH if on and limp else int(on)
         self.send("enable", on=value)
-        starting = [name for name, _ in messages.STATES].index("starting")
 
         def why(hb):
             if hb["refusal"]:
                 return f"enable {value} refused: {refusal_reason(hb['refusal'])}"
             return f"enable {value} not taken; faults {fault_names(hb['faults'])}"
-        return self._confirm(lambda hb: hb["enabled"] == value and (not on or hb["state"] > starting), why)
+        return self._confirm(lambda hb: hb["enabled"] == value and (not on or hb["state"] > STARTING), why)
 
     def disable(self) -> dict:
         return self.enable(False)
 
     def engage(self, on: bool = True) -> dict:
-        self.send("engage", on=int(on))
-
+        """engage 1 on a board just powered up waits for its IMU to settle (refused as
+        imu_not_ready meanwhile: sent again, for up to CONFIRM_S of the board's time)."""
         def why(hb):
             if on and not hb["enabled"]:
                 return "engage refused: the arm is not enabled (enable it first)"
             if on and hb["refusal"]:
                 return f"engage refused: {refusal_reason(hb['refusal'])}; faults {fault_names(hb['faults'])}"
             return f"engage {int(on)} not taken; faults {fault_names(hb['faults'])}"
-        return self._confirm(lambda hb: hb["engaged"] == int(on), why)
+        first_ms = None
+        while True:
+            self.send("engage", on=int(on))
+            try:
+                return self._confirm(lambda hb: hb["engaged"] == int(on), why)
+            except CommandRefused as refused:
+                hb = refused.heartbeat
+                first_ms = hb["uptime_ms"] if first_ms is None else first_ms
+                if not (on and hb["refusal"] == IMU_NOT_READY and _ms_since(first_ms, hb) < CONFIRM_S * 1000):
+                    raise
 
     def disengage(self) -> dict:
         return self.engage(False)
@@ -374,15 +444,14 @@ class ArmLink:
                 return (f"set_position {target} refused: unreachable (outside the reach, in the body or a "
                         f"leg); the arm keeps ({hb['set_x']:.1f}, {hb['set_y']:.1f}, {hb['set_z']:.1f})")
             return f"set_position {target} not taken; faults {fault_names(hb['faults'])}"
-        return self._confirm(taken, why)
+        return self._confirm(taken, why, refused=lambda hb: hb["unreachable"] or hb["refusal"])
 
     # ---------------------------------------------------------------- service (bring-up, calibration)
 
     def _service(self, name: str, **fields) -> dict:
         """Send a service command; the heartbeat that took it, or CommandRefused with the reason."""
         self.send(name, **fields)
-        hb = self.next_heartbeat()     # (at most a period old: the command arrived before it)
-        hb = self.next_heartbeat()
+        hb = self._after_command()
         if hb["refusal"]:
             raise CommandRefused(f"{name} refused: {refusal_reason(hb['refusal'])}")
         return hb
@@ -394,8 +463,14 @@ class ArmLink:
         return self._service("stream", imu_every=int(imu_every), servos=int(bool(servos)))
 
     def torque(self, on: bool) -> dict:
-        """Torque off (limp: move the arm by hand, positions still read) or back on."""
-        return self._service("torque", on=int(bool(on)))
+        """Torque off (limp: move the arm by hand, positions still read) or back on: taken once
+        the servos are set up again (the state past "starting"), so a jog may follow at once."""
+        hb = self._service("torque", on=int(bool(on)))
+        if not on:
+            return hb
+        return self._until(hb, lambda hb: hb["state"] > STARTING,
+                           lambda hb: f"torque 1 taken, but the servos were not set up again within {CONFIRM_S:g} s; "
+                                      f"faults {fault_names(hb['faults'])}")
 
     def jog(self, joint: int, *, angle: float | None = None, units: int | None = None) -> dict:
         """Joint 1-3 to an angle (rad) or by servo units, at park speed, checked like every move."""

@@ -6,8 +6,8 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   (uavarm_ros/SetPosition: x, y, z in metres, REP 103). Each answers once a heartbeat shows
   the command taken (uavarm.link.ArmLink), or success false with the board's reason: "engage
   refused: the arm is not enabled", "... refused: unreachable ...", "no heartbeat ...".
-- `~status` (uavarm_ros/ArmStatus): every fresh heartbeat (the link drops those queued longer
-  than a heartbeat period; a board restart is logged as a warning, and as an error if it was
+- `~status` (uavarm_ros/ArmStatus): every fresh heartbeat, at the model's heartbeat rate
+  (the link drops those queued longer than half a second; a board restart is logged as a warning, and as an error if it was
   enabled and its watchdog or a fault reset it: it came up limp, `unexpected_resets` counts
   it, and unless `~reenable` is false enable is sent again so that it parks, never engaged). A message of this package
   rather than diagnostic_msgs key/value strings, so consumers get typed fields (flags, joints,
@@ -16,8 +16,8 @@ Interface (private names, under the node: /<uav_name>/arm/...):
   ("drone") or the board runs on its own IMU only ("imu"), and `velocity_source` whether the
   drone's velocity is ("drone" or "none"; each change is logged). New fault
   bits (for example link_lost when the arm parked after a silent link) are logged as warnings.
-- `joint_states` (sensor_msgs/JointState, robot_state_publisher's): the shafts of each
-  heartbeat as the servos' status reads found them, only the joints read (none while the arm
+- `joint_states` (sensor_msgs/JointState, robot_state_publisher's): at the heartbeat rate,
+  the shafts of each heartbeat as the servos' status reads found them, only the joints read (none while the arm
   is disabled: its servos are unpowered), never a goal in their place; `~goal_joint_states`
   the goals beside them.
 - `~target` (geometry_msgs/PointStamped): a stream of targets in any frame TF links to
