@@ -16,9 +16,10 @@ LinkLate: valid heartbeats come, all too late to trust). No rule counts heartbea
 hold at any heartbeat period.
 
 An engaged, limp or jogged arm parks if the link is silent for the model's
-link.silence_timeout (a ping does not count), so a drone keeps sending: `keep_alive()` repeats the current set position (only while
-no new target is being set), and within `with arm.kept_alive():` every poll does so once
-nothing was sent for KEEP_ALIVE_S (the calibrations on the bench).
+link.silence_timeout (a ping does not count), so a drone keeps sending: `keep_alive()`
+repeats the current set position (only while no new target is being set), and within
+`with arm.kept_alive():` every poll does so once nothing was sent for KEEP_ALIVE_S (the
+calibrations on the bench).
 
 Only fresh heartbeats count: each carries a sequence number and the board's uptime, and one
 that arrives more than STALE_S later than the board's clock says it should (queued while no
@@ -68,6 +69,7 @@ READ_LIMIT = 65536
 KEEP_ALIVE_S = 0.2
 # enable's value for the bench, and the heartbeat's enabled then (model/messages.py)
 BENCH = 2
+# the heartbeat's state and refusal values the confirmations wait past
 STARTING = [name for name, _ in messages.STATES].index("starting")
 IMU_NOT_READY = [name for name, _ in messages.REFUSALS].index("imu_not_ready")
 # the resets a board does not mean (heartbeat.reset_cause): an enabled arm comes up limp
@@ -389,8 +391,7 @@ class ArmLink:
 
     def enable(self, on: bool = True, *, limp: bool = False) -> dict:
         """enable 1 is taken once the servos are configured (the heartbeat's state past
-        "starting"), so an engage may follow at once (on a board up for half a second: before,
-        its IMU is still settling and engage is refused as imu_not_ready). limp: enable 2, the bench (to calibrate
+        "starting"), so an engage may follow at once. limp: enable 2, the bench (to calibrate
         the servos): configured with the torque off, the arm limp where it hangs; the board
         never moves it on its own, and engage is refused, until enable (1) parks it."""
         value = BENCH if on and limp else int(on)
@@ -453,7 +454,7 @@ class ArmLink:
         self.send(name, **fields)
         hb = self._after_command()
         if hb["refusal"]:
-            raise CommandRefused(f"{name} refused: {refusal_reason(hb['refusal'])}")
+            raise CommandRefused(f"{name} refused: {refusal_reason(hb['refusal'])}", hb)
         return hb
 
     def stream(self, imu_every: int = 0, servos: bool = False) -> dict:
