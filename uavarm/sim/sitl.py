@@ -45,6 +45,9 @@ from ..model import config
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
 SLICE_S = 0.002
+# bytes of output the SITL holds for a reader that is behind (a busy machine), about 14 s of
+# heartbeats and a stream at twice real time; beyond, the oldest are dropped
+OUTPUT_KEPT = 256 * 1024
 # ioctl reading a tty's struct termios2 (Linux, asm-generic): its speeds are the bit rates
 TCGETS2 = 0x802C542A
 # The firmware's main loop runs every this many simulated microseconds (the closed-loop
@@ -125,6 +128,7 @@ class Sitl:
         self._delay_us = [round(d * 1e6) for d in link_delay]
         self._inbound: deque[tuple[int, bytes]] = deque()    # (due board us, bytes) on their way in
         self._outbound: deque[tuple[int, bytes]] = deque()   # and out
+        self._outbound_bytes = 0
         self.board = SimBoard(model, motion=motion_of(scenario), record=False, poll_us=POLL_US, **board_options)
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave)          # bytes pass unchanged: no echo, no line editing
@@ -339,14 +343,19 @@ class Sitl:
         out = self.board.take_link_output()
         if out:
             self._outbound.append((self.board.now_us + self._delay_us[1], out))
+            self._outbound_bytes += len(out)
         while self._outbound and self._outbound[0][0] <= self.board.now_us:
-            out = self._outbound.popleft()[1]
-            while out:
-                try:
-                    n = os.write(self._master, out)
-                except BlockingIOError:
-                    break   # nobody is reading: dropped, as a full USB queue would
-                out = out[n:]
+            due, out = self._outbound.popleft()
+            try:
+                n = os.write(self._master, out)
+            except BlockingIOError:
+                n = 0
+            self._outbound_bytes -= n
+            if n < len(out):   # the reader is behind: the rest waits, as in the host's USB buffers
+                self._outbound.appendleft((due, out[n:]))
+                break
+        while self._outbound_bytes > OUTPUT_KEPT:
+            self._outbound_bytes -= len(self._outbound.popleft()[1])   # nobody reads: the oldest dropped
 
     def run(self) -> None:
         """The board kept at real time times the speed, a slice at a time, until stop()."""
