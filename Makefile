@@ -36,8 +36,9 @@ test: $(STAMP)
 	echo "make test: computing stage $$(verdict $$computing); real-time stage $$(verdict $$realtime)"; \
 	[ $$computing -eq 0 ] && [ $$realtime -eq 0 ]
 
-# The denser runs of checks make test makes (the safety grid's slowest servos on a 24 mm grid
-# of targets: about 3 minutes of one core).
+# The denser runs and the other cases of checks make test makes on their worst case: the
+# safety grid's slowest servos on a 24 mm grid of targets and the model file's lag on the
+# 48 mm grid, three edge set positions under rocking on the quickest servos.
 test-long: $(STAMP)
 	$(PY) -m pytest -q -n auto -m long
 
