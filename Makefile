@@ -17,9 +17,9 @@ codegen: $(STAMP)
 # Both stages at once, each with a worker per core: the tests that only compute in the
 # foreground and, in the background (output in build/test-realtime.log, printed at the end),
 # the ones that run a simulated board in real time beside the link client, the calibrations or
-# the ROS node. Those mostly wait on their boards, which keep simulated time, so they need
-# little of the CPU; their verdicts do not depend on the load (`make test-busy`), and running
-# them beside the computing workers shows that on every run. The background stage runs in a
+# the ROS node. Their verdicts do not depend on the load (their waits are bounded in the
+# boards' simulated time or end on what the board says: `make test-busy`), and running them
+# beside the computing workers shows that on every run. The background stage runs in a
 # process group of its own with Ctrl-C's default action restored (a shell's background job
 # ignores it), so Ctrl-C, which reaches the foreground stage, stops it too, fixtures torn down.
 # Both stages' results are shown, and either failing fails the target.
