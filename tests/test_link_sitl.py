@@ -261,6 +261,10 @@ def test_a_sitl_behind_real_time_says_so_and_a_client_on_its_clock_does_not_mind
         with link(s) as arm:
             assert arm.enable()["enabled"] == 1
             assert arm.status()["enabled"] == 1 and arm.age.stale == 0
+        end = time.monotonic() + 30
+        while not told:                               # the report, once it is 0.1 s behind
+            assert time.monotonic() < end, "no report of the lag"
+            time.sleep(0.05)
         assert re.fullmatch(r"sitl: the simulated board is \d+\.\d\d s behind real time \(speed 50x asked\): "
                             r"the machine is too busy; its heartbeats come late", told[0]), told
         assert s.max_lag > sitl_module.LAG_WARN_S
