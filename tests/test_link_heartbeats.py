@@ -107,7 +107,7 @@ class PingingBoard(QueuedPort):
 
     def write(self, data):
         self._catch_up()
-        for name, f in sent_frames(_Written(data)):
+        for name, f in frames_of(data):
             if name == "ping" and f["seq"] not in self.lose:
                 self.out += pong(f["seq"])
         return super().write(data)
@@ -116,11 +116,6 @@ class PingingBoard(QueuedPort):
         self._catch_up()
         out, self.out = self.out, b""
         return out
-
-
-class _Written:
-    def __init__(self, data):
-        self.written = [data]
 
 
 def test_a_lost_pong_is_asked_again_and_a_command_shown_within_a_second_is_confirmed():
@@ -246,10 +241,15 @@ def test_late_heartbeats_are_told_from_garbled_bytes_and_silence():
 
 # ---------------------------------------------------------------- keep-alive and restarts
 
-def sent_frames(port) -> list[tuple[str, dict]]:
-    """The messages written to a stand-in port, decoded as the board would."""
+def frames_of(data: bytes) -> list[tuple[str, dict]]:
+    """The messages in `data`, decoded as the board would."""
     decoder = llcp.Decoder(expected_len=lambda i: messages.BY_ID[i].size if i in messages.BY_ID else -1)
-    return [messages.decode(p) for p in decoder.feed(b"".join(port.written), 0.0)]
+    return [messages.decode(p) for p in decoder.feed(data, 0.0)]
+
+
+def sent_frames(port) -> list[tuple[str, dict]]:
+    """The messages written to a stand-in port."""
+    return frames_of(b"".join(port.written))
 
 
 def test_kept_alive_the_polls_repeat_the_set_position_and_a_ping_is_none():

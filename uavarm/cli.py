@@ -46,7 +46,7 @@ def demo(args) -> int:
     shown, lines = -1.0, HeartbeatLines(args.every)
 
     def run_until(at):
-        """Run to `at` s, printing the heartbeats on the way (the board keeps only its last ten)."""
+        """Run to `at` s, printing the heartbeats on the way (the board keeps only its latest)."""
         while board.time < at:
             board.run_until_us(round(min(at, board.time + DEMO_KEEP_ALIVE_S) * 1e6))
             print_heartbeats()
@@ -172,11 +172,10 @@ def _integer(lo: int):
 
 FINITE = _number(lambda v: True, "must be a finite number")
 POSITIVE = _number(lambda v: v > 0, "must be a positive number")
-NON_NEGATIVE = _number(lambda v: v >= 0, "must be zero or a positive number")
-EVERY_HELP = ("print a heartbeat at most every S seconds of the board's clock, with the faults of those "
-              "skipped (default: %(default)s; 0: every heartbeat, link.heartbeat_period apart)")
 NOT_NEGATIVE = _number(lambda v: v >= 0, "must be a number >= 0")
 SUPPLY_VOLTS = _number(lambda v: 6 <= v <= 14, "must be a voltage from 6 to 14 (the servos' supply limits)")
+EVERY_HELP = ("print a heartbeat at most every S seconds of the board's clock, with the faults of those "
+              "skipped (default: %(default)s; 0: every heartbeat, link.heartbeat_period apart)")
 
 
 def version() -> str:
@@ -209,7 +208,7 @@ def parser() -> argparse.ArgumentParser:
     d.add_argument("--seconds", type=POSITIVE, default=4.0,
                    help=f"simulated seconds to run (default: %(default)s); enable at 0 s, set position and "
                         f"engage at {DEMO_ENGAGE_S} s, the set position repeated every {DEMO_KEEP_ALIVE_S} s")
-    d.add_argument("--every", type=NON_NEGATIVE, default=LINE_EVERY_S, metavar="S", help=EVERY_HELP)
+    d.add_argument("--every", type=NOT_NEGATIVE, default=LINE_EVERY_S, metavar="S", help=EVERY_HELP)
     lk = sub.add_parser("link", help="command a board (or a SITL) over its serial port")
     lk.add_argument("port", help="serial device, e.g. /dev/ttyACM0 or the path `uavarm sitl` prints")
     lk.add_argument("action", choices=["enable", "disable", "engage", "disengage", "goto", "status", "monitor",
@@ -236,7 +235,7 @@ def parser() -> argparse.ArgumentParser:
                     help="shell: a board that restarts while enabled after a watchdog reset or a fault (it "
                          "comes up limp) is reported but not enabled again (default: enabled again, so it "
                          "parks; never engaged again)")
-    lk.add_argument("--every", type=NON_NEGATIVE, default=LINE_EVERY_S, metavar="S", help="monitor: " + EVERY_HELP)
+    lk.add_argument("--every", type=NOT_NEGATIVE, default=LINE_EVERY_S, metavar="S", help="monitor: " + EVERY_HELP)
     lk.add_argument("--no-keep-alive", dest="keep_alive", action="store_false",
                     help="monitor: do not repeat the set position (an engaged arm then parks after the "
                          "link silence timeout)")
