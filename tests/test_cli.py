@@ -4,6 +4,7 @@ import math
 import pytest
 
 from uavarm import cli
+from uavarm.link import messages
 from uavarm.link.messages import FAULTS
 
 
@@ -52,10 +53,7 @@ def test_demo_prints_a_heartbeat_each_half_second_by_default(capsys, model):
 
 def test_a_line_for_many_heartbeats_says_the_faults_of_them_all():
     lines = cli.HeartbeatLines(0.5)
-    hb = dict(seq=0, uptime_ms=0, enabled=1, engaged=0, unreachable=0, state=1, refusal=0, faults=0,
-              set_x=0.0, set_y=0.0, set_z=0.0, p1=0.0, p2=0.0, p3=0.0, q1=0.0, q2=0.0, q3=0.0,
-              estimate_sources=1, servo1_error=0, servo2_error=0, servo3_error=0, link_frames_ok=0,
-              link_errors=0, servo_timeouts=0, reset_cause=0, last_fault=0)
+    hb = dict.fromkeys((name for name, _ in messages.BY_NAME["heartbeat"].fields), 0)
     assert "faults []" in lines.line(0.04, hb)
     assert lines.line(0.08, dict(hb, faults=1 << [n for n, _ in FAULTS].index("link_lost"))) is None
     assert lines.line(0.12, hb) is None

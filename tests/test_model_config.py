@@ -565,3 +565,9 @@ def test_bench_torque_limit_reaches_the_firmware_in_torque_limit_units(tmp_path,
     path.write_text(BASE.replace("bench_torque_limit = 0.35", f"bench_torque_limit = {share}", 1))
     header = generate.render(path)["model_params.h"]
     assert re.search(rf"#define MODEL_SERVO_BENCH_TORQUE_LIMIT {units}u\b", header), header
+
+
+def test_the_slowest_heartbeat_fits_the_drone_sides_rules():
+    """Three of the slowest heartbeats fit in the client's silence, two in its confirmation."""
+    from uavarm.link.client import CONFIRM_S, SILENCE_S
+    assert 3 * config.HEARTBEAT_SLOWEST_S <= SILENCE_S and 2 * config.HEARTBEAT_SLOWEST_S <= CONFIRM_S
