@@ -14,24 +14,13 @@ $(STAMP): pyproject.toml
 codegen: $(STAMP)
 	$(PY) -m uavarm.codegen
 
-# Both stages at once, each with a worker per core: the tests that only compute in the
-# foreground and, in the background (output in build/test-realtime.log, printed at the end),
-# the ones that run a simulated board in real time beside the link client, the calibrations or
-# the ROS node. Their verdicts do not depend on the load (their waits are bounded in the
-# boards' simulated time or end on what the board says: `make test-busy`), and running them
-# beside the computing workers shows that on every run. The background stage runs in a
-# process group of its own with Ctrl-C's default action restored (a shell's background job
-# ignores it), so Ctrl-C, which reaches the foreground stage, stops it too, fixtures torn down.
-# Both stages' results are shown, and either failing fails the target.
-REALTIME_LOG := build/test-realtime.log
-PYTEST_INTERRUPTIBLE := $(PY) -c 'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler); sys.exit(pytest.main(sys.argv[1:]))'
+# Every core for the tests that only compute; then, also on every core, the ones that run a
+# simulated board in real time beside the link client, the calibrations or the ROS node
+# (meant not to depend on the load; `make test-busy` checks it). The second stage runs even
+# if the first failed; both stages' results are shown, and either failing fails the target.
 test: $(STAMP)
-	@mkdir -p build; \
-	setsid $(PYTEST_INTERRUPTIBLE) -q -n auto --dist worksteal -m realtime >$(REALTIME_LOG) 2>&1 & background=$$!; \
-	trap 'kill -INT -$$background 2>/dev/null; wait $$background; exit 130' INT TERM HUP; \
-	$(PY) -m pytest -q -n auto --dist worksteal -m "not realtime and not long"; computing=$$?; \
-	wait $$background; realtime=$$?; trap - INT TERM HUP; \
-	echo "--- real-time stage (run beside the computing stage; $(REALTIME_LOG)):"; cat $(REALTIME_LOG); \
+	@$(PY) -m pytest -q -n auto --dist worksteal -m "not realtime and not long"; computing=$$?; \
+	$(PY) -m pytest -q -n auto --dist worksteal -m realtime; realtime=$$?; \
 	verdict() { [ $$1 -eq 0 ] && echo passed || echo "FAILED (pytest exit $$1)"; }; \
 	echo "make test: computing stage $$(verdict $$computing); real-time stage $$(verdict $$realtime)"; \
 	[ $$computing -eq 0 ] && [ $$realtime -eq 0 ]
