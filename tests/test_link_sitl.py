@@ -277,6 +277,27 @@ def test_a_sitl_behind_real_time_says_so_and_a_client_on_its_clock_does_not_mind
         s.stop()
 
 
+def test_a_sitl_behind_real_time_catches_up_no_faster_than_its_catch_up_rate():
+    """The board's thread held up 2 s (as a busy machine does): then, however busy the machine,
+    the board runs at most CATCH_UP times the speed asked until it has caught up, so a program
+    pacing itself on the wall clock looks at most that much slower to it than to a real board.
+    (A bound only: load slows the board, never speeds it; flat out it ran 1.46 s in 0.2 s.)"""
+    from uavarm.sim import sitl as sitl_module
+    s = Sitl(speed=1.0, warn=lambda text: None).start()
+    try:
+        s.handle = lambda text: time.sleep(2.0) or "held up"
+        assert s.submit("hold").result(timeout=30) == "held up"
+        slack_us = 2 * sitl_module.SLICE_S * 1e6          # a slice begun before each end of the span
+        for _ in range(5):
+            wall, board_us = time.monotonic(), s.board.now_us
+            time.sleep(0.2)
+            ran_us = s.board.now_us - board_us
+            assert ran_us <= sitl_module.CATCH_UP * (time.monotonic() - wall) * 1e6 + slack_us
+        assert s.lag > 1.0, "still catching up: the spans above were all behind real time"
+    finally:
+        s.stop()
+
+
 @pytest.mark.parametrize("text, kind", [("level", "Gravity"), ("tilt:10,-5", "Gravity"), ("rock:10,5,0.5", "Rocking")])
 def test_scenarios_parse(text, kind):
     from uavarm.sim.sitl import motion_of

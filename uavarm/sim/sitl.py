@@ -6,12 +6,12 @@ simulated servos and IMU; a pseudo-terminal stands in for the board's USB virtua
 so the link client, the ROS node or a terminal program cannot tell it from the real board:
 LLCP frames in, heartbeats every 0.5 s out.
 
-A machine too busy to run the board in real time makes it fall behind: it then runs flat out
-to catch up, and says so (`warn`, stderr by default) when it is more than LAG_WARN_S behind,
-so late heartbeats are not taken for a broken link. A link client in the same process can
-keep the board's time instead of the wall clock's (`ArmLink(device, clock=sitl.clock)`): its
-timeouts, the heartbeats' ages and the delays it measures then count in simulated time,
-whatever the load.
+A machine too busy to run the board in real time makes it fall behind: it then catches up,
+at no more than CATCH_UP times the speed asked, and says so (`warn`, stderr by default) when
+it is more than LAG_WARN_S behind, so late heartbeats are not taken for a broken link. A link
+client in the same process can keep the board's time instead of the wall clock's
+(`ArmLink(device, clock=sitl.clock)`): its timeouts, the heartbeats' ages and the delays it
+measures then count in simulated time, whatever the load.
 
 Scenarios: `level` (default), `tilt:ROLL,PITCH` (degrees, held still) and
 `rock:ROLL,PITCH,HZ` (bench tilting: sinusoidal roll and pitch of those amplitudes).
@@ -58,6 +58,13 @@ POLL_US = 250
 # while it stays behind, and once when it has caught up.
 LAG_WARN_S = 0.1
 LAG_REPORT_S = 5.0
+# Behind real time, the board catches up at no more than this many times the speed asked.
+# Flat out (7.3 times real time idle, 2.2 to 2.6 times engaged beside busy processes, on a
+# 2-core VM) a program that paces itself on the wall clock, as a node's 10 ms loop and its
+# keep-alive do, looked that much slower to the board than to a real one: a pause of 0.4 s in
+# it could become the 1 s of silence after which the board parks an engaged arm. At this
+# rate that takes a pause of 0.8 s (beside a real board, 1 s).
+CATCH_UP = 1.25
 # clock() raises once the board's time has stood still this long (s of wall time): a hang
 # guard for clients that wait on it.
 STALL_S = 30.0
@@ -359,10 +366,13 @@ class Sitl:
 
     def run(self) -> None:
         """The board kept at real time times the speed, a slice at a time, until stop()."""
-        start = time.monotonic()
+        start = last = time.monotonic()
         try:
             while not self._stop.is_set():
-                target_us = round((time.monotonic() - start) * self.speed * 1e6)
+                wall = time.monotonic()
+                target_us = round((wall - start) * self.speed * 1e6)
+                pace_us = self.board.now_us + round((wall - last) * self.speed * CATCH_UP * 1e6)
+                last = wall
                 while self._resets:
                     self.board.reset(*self._resets.popleft())
                 while self._commands:
@@ -372,7 +382,7 @@ class Sitl:
                     except Exception as exc:   # a command's slip must not stop the board
                         done.set_result(f"{text.strip()!r} failed: {exc}")
                 self._read_input()
-                end_us = min(target_us, self.board.now_us + round(SLICE_S * 1e6))
+                end_us = min(target_us, pace_us, self.board.now_us + round(SLICE_S * 1e6))
                 self._run_until_us(end_us)
                 self._write_output()
                 self._watch_lag(target_us - self.board.now_us)
