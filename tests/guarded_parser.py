@@ -22,3 +22,13 @@ class GuardedParser:
 
     def guard_intact(self) -> bool:
         return bytes(self.ffi.buffer(self.mem + self.size, self.GUARD)) == b"\xa5" * self.GUARD
+
+    def follow(self, stream: bytes, reference):
+        """Feeds stream byte by byte; each result, and each packet reported, must be the
+        reference's (an iterable of (result, packet or None) per byte)."""
+        for i, (want, packet) in enumerate(reference):
+            got = self.parse_byte(self.p, stream[i])
+            assert got == want, (i, stream[:i + 1].hex(" "))
+            if packet is not None:
+                assert self.packet() == packet
+        assert self.guard_intact()

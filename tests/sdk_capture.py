@@ -63,3 +63,15 @@ def sdk_packet(call: str, *args, protocol: float = 1.0) -> bytes:
     getattr(packet_handler(protocol), call)(port, *args)
     (packet,) = port.sent
     return packet
+
+
+def sdk_sync_write(handler, addr: int, data_len: int, ids, data: bytes) -> bytes:
+    """The SYNC_WRITE GroupSyncWrite sends: servo ids[i] gets data[i*data_len ...]."""
+    import dynamixel_sdk as sdk
+    port = CapturePort()
+    group = sdk.GroupSyncWrite(port, handler, addr, data_len)
+    for i, id_ in enumerate(ids):
+        assert group.addParam(id_, list(data[i * data_len:(i + 1) * data_len]))
+    assert group.txPacket() == sdk.COMM_SUCCESS
+    (packet,) = port.sent
+    return packet

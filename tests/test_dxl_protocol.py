@@ -19,7 +19,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
 from guarded_parser import GuardedParser
-from sdk_capture import CapturePort
+from sdk_capture import CapturePort, sdk_sync_write
 from uavarm.build import cbuild
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -190,12 +190,7 @@ def sync_writes(draw):
 @given(sync_writes())
 def test_sync_write_matches_sdk_group_sync_write(args):
     addr, data_len, ids, data = args
-    port = CapturePort()
-    group = sdk.GroupSyncWrite(port, PH, addr, data_len)
-    for i, id_ in enumerate(ids):
-        assert group.addParam(id_, list(data[i * data_len:(i + 1) * data_len]))
-    assert group.txPacket() == sdk.COMM_SUCCESS
-    assert c_sync(addr, data_len, ids, data) == port.sent[0]
+    assert c_sync(addr, data_len, ids, data) == sdk_sync_write(PH, addr, data_len, ids, data)
 
 
 @SETTINGS
@@ -440,13 +435,7 @@ def overlapping_packets():
 @settings(SETTINGS, max_examples=400)
 @given(stream=overlapping_packets(), size=st.integers(6, 24))
 def test_every_byte_does_what_the_written_rules_say(stream, size):
-    p = Parser(size=size)
-    for i, (want, packet) in enumerate(reference_parse(stream, size)):
-        got = p.lib.dxl_parse_byte(p.p, stream[i])
-        assert got == want, (i, stream[:i + 1].hex(" "))
-        if want == COMPLETE:
-            assert p.packet() == packet
-    assert p.guard_intact()
+    Parser(size=size).follow(stream, reference_parse(stream, size))
 
 
 def test_newest_header_wins_when_two_packets_end_together():

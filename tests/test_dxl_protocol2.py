@@ -23,7 +23,7 @@ from dynamixel_sdk import protocol2_packet_handler as p2
 from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
 from guarded_parser import GuardedParser
-from sdk_capture import CapturePort, packet_handler, sdk_packet
+from sdk_capture import CapturePort, packet_handler, sdk_packet, sdk_sync_write
 from uavarm.build import cbuild
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -235,28 +235,20 @@ def sync_writes(draw):
 @given(sync_writes())
 def test_sync_write_matches_sdk_group_sync_write(args):
     addr, data_len, ids, data = args
-    port = CapturePort()
-    group = sdk.GroupSyncWrite(port, PH, addr, data_len)
-    for i, id_ in enumerate(ids):
-        assert group.addParam(id_, list(data[i * data_len:(i + 1) * data_len]))
-    assert group.txPacket() == sdk.COMM_SUCCESS
-    assert c_sync_write(addr, data_len, ids, data) == port.sent[0]
+    assert c_sync_write(addr, data_len, ids, data) == sdk_sync_write(PH, addr, data_len, ids, data)
 
 
 @SETTINGS
 @given(st.lists(st.tuples(servo_ids, st.integers(0, 0xFFFFFFFF)), min_size=1, max_size=20,
                 unique_by=lambda t: t[0]))
 def test_goal_position_sync_write_matches_sdk(servos):
-    # X-series Goal Position: address 116, 4 bytes (negative goals are their two's complement)
-    port = CapturePort()
-    group = sdk.GroupSyncWrite(port, PH, 116, 4)
-    for id_, goal in servos:
-        group.addParam(id_, [sdk.DXL_LOBYTE(sdk.DXL_LOWORD(goal)), sdk.DXL_HIBYTE(sdk.DXL_LOWORD(goal)),
-                             sdk.DXL_LOBYTE(sdk.DXL_HIWORD(goal)), sdk.DXL_HIBYTE(sdk.DXL_HIWORD(goal))])
-    group.txPacket()
+    # X-series Goal Position: address 116, 4 bytes (a negative goal is its two's complement)
     ids = [id_ for id_, _ in servos]
-    data = b"".join(goal.to_bytes(4, "little") for _, goal in servos)
-    assert c_sync_write(116, 4, ids, data) == port.sent[0]
+    data = b"".join(bytes([sdk.DXL_LOBYTE(sdk.DXL_LOWORD(goal)), sdk.DXL_HIBYTE(sdk.DXL_LOWORD(goal)),
+                           sdk.DXL_LOBYTE(sdk.DXL_HIWORD(goal)), sdk.DXL_HIBYTE(sdk.DXL_HIWORD(goal))])
+                    for _, goal in servos)
+    assert c_sync_write(116, 4, ids, b"".join(g.to_bytes(4, "little") for _, g in servos)) == \
+        sdk_sync_write(PH, 116, 4, ids, data)
 
 
 @SETTINGS
@@ -344,9 +336,27 @@ def test_every_valid_status_parses_like_the_sdk(parts):
     assert p.feed(pkt)[-1] == COMPLETE
     assert p.packet() == (id_, error, params)
     assert p.guard_intact()
-    # the SDK accepts it and reads the same
+    # the SDK accepts it, and reads the same parameters when none were stuffed (its
+    # in-place removeStuffing can lose a byte: see the test below)
     data, result, sdk_error = sdk_read(pkt, id_, len(params))
-    assert (result, sdk_error, bytes(data)) == (sdk.COMM_SUCCESS, error, params)
+    assert (result, sdk_error) == (sdk.COMM_SUCCESS, error)
+    if stuff(params) == params:
+        assert bytes(data) == params
+
+
+def test_stuffed_status_where_the_sdk_loses_a_byte():
+    # Parameters FF FF FD FF FD FD are sent FF FF FD FD FF FD FD. The SDK's removeStuffing
+    # reads bytes it has already moved down and drops a second FD; the written rule drops
+    # only the added one.
+    params = bytes.fromhex("FF FF FD FF FD FD")
+    pkt = status(1, 0, params)
+    assert pkt[9:-2] == bytes.fromhex("FF FF FD FD FF FD FD")
+    p = Parser()
+    assert p.feed(pkt)[-1] == COMPLETE and p.packet() == (1, 0, params)
+    data, result, _ = sdk_read(pkt, 1, len(params))
+    assert result == sdk.COMM_SUCCESS
+    assert bytes(data) != params, ("the SDK's removeStuffing keeps every byte now: compare stuffed "
+                                   "parameters too in test_every_valid_status_parses_like_the_sdk")
 
 
 def test_error_byte_is_reported_with_its_alert_bit():
@@ -529,6 +539,100 @@ def test_random_streams_stay_in_bounds(chunks, size):
             assert data[i + 1 - len(pkt):i + 1] == pkt
             offset = int(p.ffi.cast("uintptr_t", p.p.params)) - start
             assert 9 <= offset and offset + len(params) <= size and id_ <= 252
+
+
+def unstuff(raw: bytes):
+    """The stuffed part as the servo meant it, or None when an FF FF FD lacks its added FD."""
+    out, k = bytearray(), 0
+    while k < len(raw):
+        out.append(raw[k])
+        if raw[k] == 0xFD and k >= 2 and raw[k - 2:k] == b"\xff\xff":
+            if raw[k + 1:k + 2] != b"\xfd":
+                return None
+            k += 1
+        k += 1
+    return bytes(out)
+
+
+def reference_parse(stream: bytes, size: int):
+    """The resynchronising rules of dxl_protocol2.h, applied by brute force to the whole
+    stream: per byte, every start not yet discarded, newest first. Yields (result, packet)
+    per byte. A good packet ending on the byte wins (the newest of them); else the last
+    bad CRC or bad stuffing met; else a header whose LEN just arrived announcing more than
+    `size` bytes (within the SDK's LEN <= 1024)."""
+    base = 0                                      # starts before this were discarded
+    for i in range(len(stream)):
+        result, packet = NEED, None
+        for s in range(i, base - 1, -1):
+            b, n = stream[s:i + 1], i + 1 - s
+            if b[:4] != HEADER[:n] or (n >= 5 and b[4] > 252) or n < 7:
+                continue
+            length = int.from_bytes(b[5:7], "little")
+            if not 4 <= length <= 1024:
+                continue
+            if length + 7 > size:
+                if n == 7 and result == NEED:
+                    result = TOO_LONG
+                continue
+            if n < 8 or b[7] != 0x55 or n != length + 7:
+                continue
+            body = unstuff(b[7:-2])
+            if crc16(b[:-2]) != int.from_bytes(b[-2:], "little"):
+                result = BAD_CRC
+            elif body is None:
+                result = BAD_STUFFING
+            else:
+                result, packet, base = COMPLETE, (b[4], body[1], body[2:]), i + 1
+                break
+        yield result, packet
+
+
+def overlapping_packets():
+    """Streams where packets start inside packets: good, truncated, corrupted, badly
+    stuffed and too-long packets, headers cut short, and edgy bytes, in any order."""
+    def cut(pkt, k):
+        return pkt[:max(1, k % len(pkt))]
+
+    def corrupt(pkt, k):
+        b = bytearray(pkt)
+        b[-1] ^= 1 + k % 255
+        return bytes(b)
+
+    def unstuffed(id_, params):
+        body = b"\x55\x00" + params + b"\xff\xff\xfd"
+        return with_crc(HEADER + bytes([id_]) + (len(body) + 2).to_bytes(2, "little") + body)
+
+    piece = st.one_of(
+        valid_status(max_params=12),
+        st.builds(status, st.sampled_from([252, 253, 254, 255]), st.integers(0, 255), edgy_data(max_size=6)),
+        st.builds(cut, valid_status(max_params=12), st.integers(0, 255)),
+        st.builds(corrupt, valid_status(max_params=12), st.integers(0, 255)),
+        st.builds(unstuffed, servo_ids, edgy_data(max_size=6)),
+        st.builds(lambda i, n: HEADER + bytes([i]) + n.to_bytes(2, "little"), st.integers(0, 255),
+                  st.integers(0, 1100)),
+        edgy_data(max_size=6),
+    )
+    return st.lists(piece, max_size=10).map(b"".join)
+
+
+@settings(SETTINGS, max_examples=400)
+@given(stream=overlapping_packets(), size=st.integers(11, 32))
+def test_every_byte_does_what_the_written_rules_say(stream, size):
+    Parser(size=size).follow(stream, reference_parse(stream, size))
+
+
+def test_reported_packet_discards_itself():
+    # A packet ending in FF FF whose CRC is FD 00: a header straddles its end. What
+    # follows would complete a packet from that header; the reported packet's bytes are
+    # gone, so nothing does.
+    pkt = next(pkt for x in range(256) for y in range(256)
+               if (pkt := status(1, 0, bytes([x, y, 0xFF, 0xFF])))[-2:] == b"\xfd\x00")
+    assert pkt[-4:] == HEADER
+    tail = status(2, 0)[4:]                              # with pkt's last 4 bytes: a good packet
+    p = Parser()
+    results = p.feed(pkt + tail)
+    assert results[len(pkt) - 1] == COMPLETE and p.packet() == (1, 0, bytes(pkt[9:13]))
+    assert results[len(pkt):] == [NEED] * len(tail)
 
 
 def test_back_to_back_packets():
