@@ -87,9 +87,9 @@ def c_build(name: str, *args, cap: int = 1100) -> bytes:
     return bytes(ffi.buffer(buf, n))
 
 
-def c_array(values, ctype="uint8_t"):
+def c_array(values):
     ffi, _ = dxl2()
-    return ffi.new(f"{ctype}[]", list(values) or [0])
+    return ffi.new("uint8_t[]", list(values) or [0])
 
 
 def c_write(id_, addr, data, cap=1100):
@@ -537,6 +537,7 @@ def test_random_streams_stay_in_bounds(chunks, size):
             id_, error, params = p.packet()
             pkt = status(id_, error, params)
             assert data[i + 1 - len(pkt):i + 1] == pkt
+            assert PH.rxPacket(CapturePort(pkt), False)[1] == sdk.COMM_SUCCESS
             offset = int(p.ffi.cast("uintptr_t", p.p.params)) - start
             assert 9 <= offset and offset + len(params) <= size and id_ <= 252
 
