@@ -13,6 +13,7 @@
 APP_SOURCES = \
     App/Src/app.c \
     App/Src/dxl_protocol.c \
+    App/Src/dxl_protocol2.c \
     App/Src/imu_mpu6050.c \
     App/Src/llcp.c \
     App/Src/motion.c \

@@ -2,9 +2,9 @@
 
 Oracles:
 - the official DynamixelSDK (Protocol1PacketHandler, GroupSyncWrite) run against an
-  in-memory port that records what it writes: every instruction packet the C builds must
-  equal the SDK's byte for byte, and the SDK's rxPacket must accept every status packet
-  the C parser accepts;
+  in-memory port that records what it writes (sdk_capture.CapturePort): every
+  instruction packet the C builds must equal the SDK's byte for byte, and the SDK's
+  rxPacket must accept every status packet the C parser accepts;
 - the AX-12A e-manual's worked examples;
 - `status()` below, the status packet written out from the facts file's checksum formula.
 """
@@ -18,6 +18,8 @@ import dynamixel_sdk as sdk
 import pytest
 from hypothesis import HealthCheck, assume, given, settings, strategies as st
 
+from guarded_parser import GuardedParser
+from sdk_capture import CapturePort, sdk_sync_write
 from uavarm.build import cbuild
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -40,39 +42,12 @@ def status(id_: int, error: int, params: bytes = b"") -> bytes:
     return b"\xff\xff" + body + bytes([~sum(body) & 0xFF])
 
 
-class RecordingPort:
-    """Stands in for dynamixel_sdk.PortHandler: records writes, serves queued bytes."""
-
-    def __init__(self, rx: bytes = b""):
-        self.is_using = False
-        self.written: list[bytes] = []
-        self.rx = bytearray(rx)
-
-    def clearPort(self):
-        pass    # the test queues the reply before the call that reads it
-
-    def writePort(self, packet):
-        self.written.append(bytes(packet))
-        return len(packet)
-
-    def readPort(self, length):
-        out = bytes(self.rx[:length])
-        del self.rx[:length]
-        return out
-
-    def setPacketTimeout(self, packet_length):
-        pass
-
-    def isPacketTimeout(self):
-        return True     # whatever is queued is all there is
-
-
 def sdk_tx(call, *args) -> bytes:
     """The bytes an SDK call puts on the wire (nothing answers)."""
-    port = RecordingPort()
+    port = CapturePort()
     call(port, *args)
-    assert len(port.written) == 1
-    return port.written[0]
+    assert len(port.sent) == 1
+    return port.sent[0]
 
 
 def c_build(name: str, *args, cap: int = 300) -> bytes:
@@ -105,27 +80,11 @@ def c_write(name, id_, addr, data, cap=300):
     return c_build(name, id_, addr, ptr, n, cap=cap)
 
 
-class Parser:
+class Parser(GuardedParser):
     """The C status parser over a buffer with guard bytes after its `size` usable ones."""
 
-    GUARD = 16
-
     def __init__(self, size=64):
-        self.ffi, self.lib = dxl()
-        self.size = size
-        self.mem = self.ffi.new("uint8_t[]", [0xA5] * (size + self.GUARD))
-        self.p = self.ffi.new("dxl_parser_t *")
-        assert self.lib.dxl_parser_init(self.p, self.mem, size) == 0
-
-    def feed(self, data) -> list[int]:
-        return [self.lib.dxl_parse_byte(self.p, b) for b in bytes(data)]
-
-    def packet(self):
-        p = self.p
-        return p.id, p.error, bytes(self.ffi.buffer(p.params, p.n_params))
-
-    def guard_intact(self) -> bool:
-        return bytes(self.ffi.buffer(self.mem + self.size, self.GUARD)) == b"\xa5" * self.GUARD
+        super().__init__(*dxl(), "dxl", size)
 
 
 servo_ids = st.integers(0, 253)
@@ -231,38 +190,33 @@ def sync_writes(draw):
 @given(sync_writes())
 def test_sync_write_matches_sdk_group_sync_write(args):
     addr, data_len, ids, data = args
-    port = RecordingPort()
-    group = sdk.GroupSyncWrite(port, PH, addr, data_len)
-    for i, id_ in enumerate(ids):
-        assert group.addParam(id_, list(data[i * data_len:(i + 1) * data_len]))
-    assert group.txPacket() == sdk.COMM_SUCCESS
-    assert c_sync(addr, data_len, ids, data) == port.written[0]
+    assert c_sync(addr, data_len, ids, data) == sdk_sync_write(PH, addr, data_len, ids, data)
 
 
 @SETTINGS
 @given(st.lists(st.tuples(servo_ids, st.integers(0, 1023), st.integers(0, 2047)),
                 min_size=1, max_size=48, unique_by=lambda t: t[0]))
 def test_goal_speed_sync_matches_sdk(servos):
-    port = RecordingPort()
+    port = CapturePort()
     group = sdk.GroupSyncWrite(port, PH, 30, 4)
     for id_, goal, speed in servos:
         group.addParam(id_, [sdk.DXL_LOBYTE(goal), sdk.DXL_HIBYTE(goal),
                              sdk.DXL_LOBYTE(speed), sdk.DXL_HIBYTE(speed)])
     group.txPacket()
     ids, goals, speeds = zip(*servos)
-    assert c_goal_speed(ids, goals, speeds) == port.written[0]
+    assert c_goal_speed(ids, goals, speeds) == port.sent[0]
 
 
 def test_packet_length_limit_is_the_sdks():
     # 243 data bytes make a 250-byte WRITE, the SDK's largest; one more is refused by both.
     for n, ok in [(243, True), (244, False)]:
-        port = RecordingPort()
+        port = CapturePort()
         result = PH.writeTxOnly(port, 1, 0, n, [0] * n)
         assert (result == sdk.COMM_SUCCESS) == ok
         assert (len(c_write("write", 1, 0, bytes(n))) == n + 7) == ok
     # 48 servos of goal + speed fit in one SYNC_WRITE, 49 do not.
     for n, ok in [(48, True), (49, False)]:
-        port = RecordingPort()
+        port = CapturePort()
         group = sdk.GroupSyncWrite(port, PH, 30, 4)
         for i in range(n):
             group.addParam(i, [0, 0, 0, 0])
@@ -313,7 +267,7 @@ def no_inner_header(pkt: bytes) -> bool:
 
 
 def sdk_rx(stream: bytes):
-    port = RecordingPort(stream)
+    port = CapturePort(stream)
     return PH.rxPacket(port)
 
 
@@ -481,13 +435,7 @@ def overlapping_packets():
 @settings(SETTINGS, max_examples=400)
 @given(stream=overlapping_packets(), size=st.integers(6, 24))
 def test_every_byte_does_what_the_written_rules_say(stream, size):
-    p = Parser(size=size)
-    for i, (want, packet) in enumerate(reference_parse(stream, size)):
-        got = p.lib.dxl_parse_byte(p.p, stream[i])
-        assert got == want, (i, stream[:i + 1].hex(" "))
-        if want == COMPLETE:
-            assert p.packet() == packet
-    assert p.guard_intact()
+    Parser(size=size).follow(stream, reference_parse(stream, size))
 
 
 def test_newest_header_wins_when_two_packets_end_together():
