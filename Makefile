@@ -47,7 +47,9 @@ bench: $(STAMP)
 	$(PY) bench/run.py
 
 # The closed-loop simulator's full table (docs/simulator.md): bench, hover and
-# manoeuvre x the complementary, quaternion and link estimators x 3 seeds x 60 s, into
+# manoeuvre x the quaternion (IMU only), link, imu-velocity and link-velocity estimators x
+# 16 seeds x 30 s, each seed drawing its errors across the ranges of uavarm/sim/error_ranges.py,
+# stated as the median, 95th percentile and worst across the seeds, into
 # build/sim-report/report.md with plots. Stops with the key's name if a preset's model keys
 # are unknown to this firmware.
 sim-report: $(STAMP)

@@ -66,6 +66,7 @@ def test_white_profile_has_no_bias_and_noise_through_the_firmwares_filter():
 @pytest.mark.parametrize("profile, gyro_dps, accel_g, scale", [
     ("datasheet", 20.0, (0.050, 0.050, 0.080), 0.03),
     ("calibrated", 3.0, (0.005, 0.005, 0.009), 0.004),
+    ("ranges", 3.0, (0.015, 0.015, 0.015), 0.004),
 ])
 def test_biases_and_scale_errors_stay_in_their_ranges_and_fill_them(profile, gyro_dps, accel_g, scale):
     draws = [Mpu6050Sensor(profile, seed=s).draw for s in range(300)]
@@ -193,7 +194,33 @@ def test_seeded_and_deterministic():
 
 
 def test_profiles_are_named_and_the_vibration_can_be_turned_off():
-    assert set(imu_model.PROFILES) == {"ideal", "white", "calibrated", "datasheet"}
+    assert set(imu_model.PROFILES) == {"ideal", "white", "calibrated", "datasheet", "ranges"}
     e = imu_model.PROFILES["calibrated"].without_vibration()
     assert isinstance(e, ImuErrors) and not e.vibration
     assert Mpu6050Sensor(e, seed=0).draw.tones == ()
+
+
+def test_the_ranges_profile_drifts_within_its_rates_and_leaves_the_other_draws_alone():
+    """Drift rates drawn within +-1 mg/min (accelerometer) and +-0.1 deg/s/min (gyro) per axis,
+    filling the range; a sensor without drift draws the same biases and scales."""
+    draws = [Mpu6050Sensor("ranges", seed=s).draw for s in range(300)]
+    accel = np.array([d.accel_drift for d in draws]) * 60.0          # g/min
+    gyro = np.degrees([d.gyro_drift for d in draws]) * 60.0          # deg/s per min
+    assert np.all(np.abs(accel) <= 0.001) and np.all(np.abs(accel).max(axis=0) > 0.9 * 0.001)
+    assert np.all(np.abs(gyro) <= 0.1) and np.all(np.abs(gyro).max(axis=0) > 0.9 * 0.1)
+    still_profile = replace(PROFILES["ranges"], accel_drift_g_per_min=0.0, gyro_drift_dps_per_min=0.0)
+    plain = Mpu6050Sensor(still_profile, seed=7).draw
+    assert np.array_equal(plain.accel_bias, draws[7].accel_bias) and np.array_equal(plain.gyro_cross, draws[7].gyro_cross)
+    assert not plain.accel_drift.any() and not plain.gyro_drift.any()
+
+
+def test_a_drifting_sensor_reads_its_bias_moving_in_time():
+    """Held still, the reading moves by the drift rate times the time since power-up."""
+    sensor = Mpu6050Sensor("ideal", seed=3)                           # no noise: the drift alone
+    rate_acc, rate_gyro = np.array([0.002, -0.001, 0.0005]), np.radians([0.05, -0.02, 0.01])   # per s
+    sensor.draw = replace(sensor.draw, accel_drift=rate_acc, gyro_drift=rate_gyro)
+    acc, gyro = record(sensor, still, 6.0, cfg=3, div=9, rate=100.0)
+    moved_acc = acc[-100:].mean(axis=0) - acc[:100].mean(axis=0)      # 5 s apart
+    moved_gyro = gyro[-100:].mean(axis=0) - gyro[:100].mean(axis=0)
+    assert np.allclose(moved_acc, 5.0 * rate_acc, rtol=1e-3)
+    assert np.allclose(moved_gyro, 5.0 * rate_gyro, rtol=1e-3)

@@ -216,6 +216,8 @@ def test_report_writes_the_markdown_table(tmp_path):
     assert rc == 0
     text = (tmp_path / "report.md").read_text()
     assert "| bench tilting | model |" in text and "| hover in gusty wind | model |" in text
+    assert "EE RMS median mm | EE RMS p95 mm | EE RMS worst mm (seed)" in text
+    assert "bench, model: the worst draw (seed 0): drone attitude" in text and "accelerometer bias (" in text
     assert len(list((tmp_path / "plots").glob("*.png"))) == 4
 
 
@@ -230,6 +232,20 @@ def test_a_sweep_runs_every_combination_best_first(tmp_path, capsys):
     assert worst == sorted(worst)                                     # best first
     assert all(r.strip("| ").split(" | ")[-1] == "0 (0)" for r in rows)   # no drone messages: none refused
     assert "Command: `python -m uavarm.sim.sweep" in out.read_text()
+
+
+def test_a_sweep_across_draws_ranks_by_the_worst_scenarios_95th_percentile_of_the_seeds():
+    """Gains chosen for the worst of the range: a combination with the lower pooled RMS but a
+    bad draw ranks below one whose draws are all moderate."""
+    def row(rms):
+        return sim_report.Row("hover", "x", 3, 30.0, rms, 0.0, 0.0, 0.0, 0.0, 0, 0.0)
+    steady = {"hover": (row(0.9), sim_report.Spread(0.9, 1.0, 1.0, 1))}
+    lucky = {"hover": (row(0.8), sim_report.Spread(0.6, 1.8, 2.0, 2))}
+    pooled = sweep.table([(["a=1"], lucky), (["a=2"], steady)], ["hover"])
+    across = sweep.table([(["a=1"], lucky), (["a=2"], steady)], ["hover"], across=True)
+    assert [l.split(" | ")[0] for l in pooled.splitlines()[2:]] == ["| a=1", "| a=2"]
+    assert [l.split(" | ")[0] for l in across.splitlines()[2:]] == ["| a=2", "| a=1"]
+    assert "hover RMS p95 across seeds mm" in across.splitlines()[0]
 
 
 @pytest.mark.parametrize("argv, msg", [

@@ -330,8 +330,11 @@ def parser() -> argparse.ArgumentParser:
                          "with it; default: a 3S lithium battery at its nominal 11.1 V)")
     sm.add_argument("--seeds", type=_integer(1), default=1, help="seeds to run (default: %(default)s)")
     sm.add_argument("--seed", type=_integer(0), default=0, help="first seed (default: %(default)s)")
-    sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet"], default=None,
+    sm.add_argument("--imu", choices=["ideal", "white", "calibrated", "datasheet", "ranges"], default=None,
                     help="IMU error profile (default: the scenario's)")
+    sm.add_argument("--draw-errors", action="store_true",
+                    help="each seed draws the drone's and the IMU's errors across the ranges `make sim-report` "
+                         "uses (uavarm/sim/error_ranges.py) instead of the scenario's own")
     sm.add_argument("--link-attitude", choices=["auto", "on", "off"], default="auto",
                     help="send the drone's attitude over the link (auto: when the firmware fuses it; "
                          "default: %(default)s)")

@@ -71,6 +71,7 @@ class Run:
     faults: list = field(default_factory=list)
     last_heartbeat: dict = field(default_factory=dict)
     gate_refusals: dict = field(default_factory=dict)   # stream -> messages the gate refused, drops
+    imu: imu_model.ImuDraw | None = None                 # the sensor's drawn errors
 
     def metrics(self) -> dict:
         e = np.linalg.norm(self.error_mm[self.scored], axis=1)
@@ -284,4 +285,4 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     refusals = {name: (st_.disagreed, st_.rejections) for name, st_ in (("drone_attitude", stab.link), ("drone_velocity", stab.vel))}
     return Run(scenario.name, seed, label, t, err, true_att, np.array(rec_est), t >= st.settle,
                flight, out_of_reach, unreachable, n_link, sorted(faults), dict(board.heartbeats[-1]) if board.heartbeats else {},
-               refusals)
+               refusals, sensor.draw)

@@ -1,5 +1,5 @@
 """Tables of the closed-loop simulator: `uavarm sim` (one scenario) and `make sim-report`
-(every scenario x estimator preset x seeds), with plots.
+(every scenario x estimator preset x draws of the errors, uavarm.sim.error_ranges), with plots.
 
     python -m uavarm.sim.report --out build/sim-report   # what `make sim-report` runs
 """
@@ -16,12 +16,12 @@ from pathlib import Path
 import numpy as np
 
 from ..build import generated, variants
-from . import ax12_sim, closed_loop, scenarios
+from . import ax12_sim, closed_loop, error_ranges, scenarios
 
 REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
-REPORT_ESTIMATORS = ("complementary", "quaternion", "imu-velocity", "link", "link-velocity")
-REPORT_SEEDS = 3
-REPORT_SECONDS = 60.0
+REPORT_ESTIMATORS = ("quaternion", "link", "imu-velocity", "link-velocity")
+REPORT_DRAWS = 16
+REPORT_SECONDS = 30.0
 
 
 @dataclass
@@ -56,13 +56,38 @@ def summarise(runs: list[closed_loop.Run], wall_s: float = 0.0) -> Row:
                sum(d for r in runs for _, d in r.gate_refusals.values()))
 
 
+@dataclass
+class Spread:
+    """Each draw's EE RMS, across the draws: the figure a claim about a range of hardware makes."""
+    median: float
+    p95: float
+    worst: float
+    worst_seed: int
+
+
+def spread(runs: list[closed_loop.Run]) -> Spread:
+    rms = np.array([r.metrics()["rms"] for r in runs])
+    k = int(np.argmax(rms))
+    return Spread(float(np.median(rms)), float(np.percentile(rms, 95)), float(rms[k]), runs[k].seed)
+
+
 HEADER = ("scenario", "estimator", "seeds", "s each", "EE RMS mm", "EE p95 mm", "EE max mm",
           "att RMS deg", "att max deg", "out of reach ticks", "drone msgs refused (drops)")
+DRAWS_HEADER = ("scenario", "estimator", "draws", "s each", "EE RMS median mm", "EE RMS p95 mm",
+                "EE RMS worst mm (seed)", "EE p95 mm, pooled", "EE max mm", "att RMS deg", "out of reach ticks",
+                "drone msgs refused (drops)")
 
 
 def cells(r: Row) -> tuple:
     return (r.scenario, r.label, str(r.seeds), f"{r.seconds:.0f}", f"{r.rms:.2f}", f"{r.p95:.2f}",
             f"{r.max:.2f}", f"{r.att_rms:.2f}", f"{r.att_max:.2f}", str(r.out_of_reach), f"{r.refused} ({r.dropped})")
+
+
+def draw_cells(row: tuple[Row, Spread]) -> tuple:
+    r, d = row
+    return (r.scenario, r.label, str(r.seeds), f"{r.seconds:.0f}", f"{d.median:.2f}", f"{d.p95:.2f}",
+            f"{d.worst:.2f} ({d.worst_seed})", f"{r.p95:.2f}", f"{r.max:.2f}", f"{r.att_rms:.2f}",
+            str(r.out_of_reach), f"{r.refused} ({r.dropped})")
 
 
 def notes(r: Row, target) -> list[str]:
@@ -76,18 +101,18 @@ def notes(r: Row, target) -> list[str]:
             f"the error is its distance from the target; choose a reachable one (`uavarm workspace`)"]
 
 
-def text_table(rows: list[Row]) -> str:
-    data = [HEADER] + [cells(r) for r in rows]
-    widths = [max(len(row[i]) for row in data) for i in range(len(HEADER))]
+def text_table(rows, header=HEADER, cell=cells) -> str:
+    data = [header] + [cell(r) for r in rows]
+    widths = [max(len(row[i]) for row in data) for i in range(len(header))]
     lines = ["  ".join(c.rjust(w) if i > 1 else c.ljust(w) for i, (c, w) in enumerate(zip(row, widths)))
              for row in data]
     lines.insert(1, "-" * len(lines[0]))
     return "\n".join(lines)
 
 
-def markdown_table(rows: list[Row]) -> str:
-    out = ["| " + " | ".join(HEADER) + " |", "|" + "|".join(["---"] * 2 + ["---:"] * (len(HEADER) - 2)) + "|"]
-    out += ["| " + " | ".join(cells(r)) + " |" for r in rows]
+def markdown_table(rows, header=HEADER, cell=cells) -> str:
+    out = ["| " + " | ".join(header) + " |", "|" + "|".join(["---"] * 2 + ["---:"] * (len(header) - 2)) + "|"]
+    out += ["| " + " | ".join(cell(r)) + " |" for r in rows]
     return "\n".join(out)
 
 
@@ -171,6 +196,16 @@ def build_variants(estimators, sets) -> dict[str, dict]:
     return out
 
 
+def _at_least_one(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1, got {text!r}")
+    return n
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m uavarm.sim.report",
                                  description="The closed-loop simulator's full table (make sim-report)")
@@ -179,7 +214,10 @@ def main(argv=None) -> int:
     ap.add_argument("--estimators", nargs="+", default=list(REPORT_ESTIMATORS),
                     help=f"presets ({', '.join(variants.PRESETS)}) or `model` (the model file as it is)")
     ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
-    ap.add_argument("--seeds", type=int, default=REPORT_SEEDS)
+    ap.add_argument("--draws", "--seeds", dest="draws", type=_at_least_one, default=REPORT_DRAWS,
+                    help="seeds per scenario and estimator, each drawing its own errors (default: %(default)s)")
+    ap.add_argument("--fixed-errors", action="store_true",
+                    help="every seed with the scenario's own stated errors instead of draws across the ranges")
     ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--supply", type=float, default=None, metavar="VOLTS",
@@ -193,35 +231,46 @@ def main(argv=None) -> int:
     except (variants.VariantError, scenarios.ScenarioError, generated.StaleCode) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    jobs = [(loaded[s], changes[e], e, seed, settings)
-            for s in args.scenarios for e in args.estimators for seed in range(args.seeds)]
+
+    def scenario_of(name, seed):
+        return loaded[name] if args.fixed_errors else error_ranges.drawn(loaded[name], seed)
+    jobs = [(scenario_of(s, seed), changes[e], e, seed, settings)
+            for s in args.scenarios for e in args.estimators for seed in range(args.draws)]
     t0 = time.monotonic()
     results = run_jobs(jobs, args.jobs)
     rows, remarks, k = [], [], 0
     plots = args.out / "plots"
     for s in args.scenarios:
         for e in args.estimators:
-            group = results[k:k + args.seeds]
-            k += args.seeds
-            rows.append(summarise([r for r, _ in group], sum(w for _, w in group)))
-            remarks += notes(rows[-1], loaded[s].target)
-            plot_run(group[0][0], plots)
-    text = text_table(rows)
+            runs = [r for r, _ in results[k:k + args.draws]]
+            rows.append((summarise(runs, sum(w for _, w in results[k:k + args.draws])), spread(runs)))
+            worst = rows[-1][1].worst_seed
+            if not args.fixed_errors:
+                remarks.append(f"{s}, {e}: the worst draw (seed {worst}): "
+                               + error_ranges.describe(scenario_of(s, worst), runs[worst].imu))
+            remarks += notes(rows[-1][0], loaded[s].target)
+            plot_run(runs[worst], plots)
+            k += args.draws
+    text = text_table(rows, DRAWS_HEADER, draw_cells)
     print(text)
     for line in remarks:
         print(line)
     args.out.mkdir(parents=True, exist_ok=True)
-    settings_line = (f"{args.seeds} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
+    errors = ("each seed's errors drawn across the ranges (" + error_ranges.ranges_text() + ")"
+              if not args.fixed_errors else
+              "each scenario's own stated errors, IMU profile " + ", ".join(f"{n}: {sc.imu_profile}"
+                                                                          for n, sc in loaded.items()))
+    settings_line = (f"{args.draws} seeds x {args.seconds:.0f} s scored per scenario and estimator, after "
                      f"{settings.preflight:.0f} s on the ground from power-up, engage {settings.engage_at:g} s "
                      f"into the flight and {settings.settle:.0f} s settling; main loop every {settings.poll_us} us; "
                      f"servo lag {servo_lag * 1e3:.1f} ms, servo supply {ax12_sim.supply_of(settings.supply).volts:g} V "
-                     f"sagging as they move; IMU profile per scenario "
-                     f"({', '.join(f'{n}: {sc.imu_profile}' for n, sc in loaded.items())}); "
-                     f"extra model edits: {args.sets or 'none'}")
+                     f"sagging as they move; {errors}; extra model edits: {args.sets or 'none'}")
     md = ["# Closed-loop simulator report", "", "Command: `make sim-report` "
           f"(`python -m uavarm.sim.report {' '.join(argv or sys.argv[1:])}`)", "", settings_line, "",
-          "End-effector error |e| in the gravity-aligned, heading-following frame, pooled over the seeds; "
-          "attitude error = |estimate - truth| of (roll, pitch).", "", markdown_table(rows), "", *remarks,
+          "End-effector error |e| in the gravity-aligned, heading-following frame. EE RMS: each seed's RMS, "
+          "its median, 95th percentile (interpolated) and worst across the seeds; EE p95 and max pooled over "
+          "the seeds' samples; attitude error = |estimate - truth| of (roll, pitch), RMS pooled. The plots "
+          "are each row's worst seed.", "", markdown_table(rows, DRAWS_HEADER, draw_cells), "", *remarks, "",
           f"Wall time: {time.monotonic() - t0:.0f} s with {args.jobs} workers. Plots: `plots/`.", ""]
     (args.out / "report.md").write_text("\n".join(md))
     print(f"\nwrote {args.out / 'report.md'} and {plots}/")
@@ -256,7 +305,9 @@ def sim_command(args) -> int:
                        drone_attitude={"auto": None, "on": True, "off": False}[args.link_attitude],
                        drone_velocity={"auto": None, "on": True, "off": False}[args.link_velocity])
     label = label_of(args.estimator, args.sets)
-    jobs = [(scenario, changes, label, seed, settings) for seed in range(args.seed, args.seed + args.seeds)]
+    seeds = range(args.seed, args.seed + args.seeds)
+    jobs = [(error_ranges.drawn(scenario, seed, args.imu) if args.draw_errors else scenario, changes, label, seed,
+             settings) for seed in seeds]
     try:
         results = run_jobs(jobs, min(args.jobs, len(jobs)))
     except scenarios.ScenarioError as exc:
@@ -268,12 +319,15 @@ def sim_command(args) -> int:
     if len(results) > 1:
         rows.append(summarise([r for r, _ in results], sum(w for _, w in results)))
         rows[-1].label = f"{label} (all {len(results)} seeds)"
-    print(f"scenario {scenario.name} ({args.scenario}), IMU {scenario.imu_profile}, "
+    print(f"scenario {scenario.name} ({args.scenario}), IMU {jobs[0][0].imu_profile}, "
           f"drone messages over the link: {results[0][0].link_messages or 'none'}, servo lag "
           f"{closed_loop.servo_lag_of(settings, variants.build(changes).model) * 1e3:.1f} ms, servo supply "
           f"{ax12_sim.supply_of(settings.supply).volts:g} V; scored {args.seconds:g} s "
           f"after {args.settle:g} s settling; wall time {sum(w for _, w in results):.1f} s")
     print(text_table(rows))
+    if args.draw_errors:
+        for (job, (r, _)) in zip(jobs, results):
+            print(f"seed {r.seed}: {error_ranges.describe(job[0], r.imu)}")
     for line in notes(rows[-1], scenario.target):
         print(line)
     if getattr(args, "export_log", None):

@@ -11,7 +11,7 @@ prints them):
     profile = "calibrated"      # uavarm.sim.imu_model.PROFILES
     vibration = true            # propeller tones (default: off on the bench, on in flight)
     [link]                      # drone_attitude: the flight controller's roll/pitch, forwarded
-    rate_hz = 50.0              # >= 50
+    rate_hz = 50.0              # >= 30
     delay_ms = 20.0             # measurement to arrival: the estimator's latency and the link's ...
     jitter_ms = 5.0             # ... +- uniform
     noise_deg = 0.35            # attitude error per axis: white, RMS ...
@@ -203,8 +203,8 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
             if name not in fields:
                 raise fail(f"{key}.{name}", f"unknown key (expected {', '.join(sorted(fields))})")
         p = params_class(**{k: number(f"{key}.{k}", v, lo=0.0) for k, v in t.items()})
-        if p.rate_hz < 50.0:
-            raise fail(f"{key}.rate_hz", f"the drone's messages must come at >= 50 Hz, got {p.rate_hz}")
+        if p.rate_hz < 30.0:
+            raise fail(f"{key}.rate_hz", f"the drone's messages must come at >= 30 Hz, got {p.rate_hz}")
         if p.jitter_ms > p.delay_ms:
             raise fail(f"{key}.jitter_ms", f"must not exceed delay_ms ({p.delay_ms}), got {p.jitter_ms}")
         if p.slow_tau_s <= 0.0:
