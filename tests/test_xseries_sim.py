@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from sdk_capture import packet_handler, sdk_packet
 from test_dxl_protocol2 import packet, status, with_crc
-from uavarm.sim.ax12_sim import AX12Bus, SdkPort
+from uavarm.sim.ax12_sim import AX12Bus, SdkPort, Supply
 from uavarm.sim.xseries_sim import XL430_W250, XM430_W350, XServo
 
 PH = packet_handler(2.0)
@@ -68,6 +68,27 @@ def test_emanual_read_example():
     # READ Present Position(132), 4 bytes; the servo at 166 (0xA6)
     assert raw(bus, bytes.fromhex("FF FF FD 00 01 07 00 02 84 00 04 00 1D 15")) == \
         bytes.fromhex("FF FF FD 00 01 08 00 55 00 A6 00 00 00 8C C0")
+
+
+def test_emanual_write_reboot_and_sync_examples():
+    """The Protocol 2.0 page's WRITE, REBOOT, SYNC_WRITE and SYNC_READ examples, byte for byte."""
+    one, two = XServo(XM430_W350, 1, table=FAST), XServo(XM430_W350, 2, table=FAST)
+    bus, port = make(one, two)
+    done = bytes.fromhex("FF FF FD 00 01 04 00 55 00 A1 0C")
+    # WRITE 512 to Goal Position(116)
+    assert raw(bus, bytes.fromhex("FF FF FD 00 01 09 00 03 74 00 00 02 00 00 CA 89")) == done
+    assert one.register("goal_position") == 512
+    assert raw(bus, bytes.fromhex("FF FF FD 00 01 03 00 08 2F 4E")) == done          # REBOOT
+    # SYNC_WRITE Goal Position: ID 1 <- 150, ID 2 <- 170 (not answered: broadcast)
+    assert raw(bus, bytes.fromhex("FF FF FD 00 FE 11 00 83 74 00 04 00"
+                                  "01 96 00 00 00 02 AA 00 00 00 82 87")) == b""
+    assert (one.register("goal_position"), two.register("goal_position")) == (150, 170)
+    # SYNC_READ Present Position(132) of IDs 1, 2 at 166 and 2079
+    one.turn_by_hand(166)
+    two.turn_by_hand(2079)
+    assert raw(bus, bytes.fromhex("FF FF FD 00 FE 09 00 82 84 00 04 00 01 02 CE FA")) == \
+        bytes.fromhex("FF FF FD 00 01 08 00 55 00 A6 00 00 00 8C C0"
+                      "FF FF FD 00 02 08 00 55 00 1F 08 00 00 BA BE")
 
 
 @pytest.mark.parametrize("model, firmware", [(XM430_W350, 45), (XL430_W250, 46)])
@@ -327,3 +348,19 @@ def test_input_voltage_error_only_where_shutdown_selects_it():
     bus.step(0.01)
     assert PH.read1ByteTxRx(port, 1, 70) == (0x01, sdk.COMM_SUCCESS, 0x80)
     assert PH.read2ByteTxRx(port, 1, 144) == (90, sdk.COMM_SUCCESS, 0x80)
+
+
+def test_on_a_sagging_supply():
+    """The AX-12A model's Supply carries X-series servos too: turning at full speed, the shaft
+    draws idle + moving amps, the voltage sags by R times that, and Present Input Voltage reads
+    it (12 V - 0.5 ohm * 0.84 A = 11.58 V)."""
+    servo = XServo(XM430_W350, 1, position=0, table=FAST)
+    bus = AX12Bus([servo], baud=BAUD, supply=Supply(volts=12.0, resistance=0.5, idle_amps=0.04,
+                                                    moving_amps=0.8))
+    port = SdkPort(bus)
+    PH.write1ByteTxRx(port, 1, 64, 1)
+    bus.step(0.01)
+    assert PH.read2ByteTxRx(port, 1, 144) == (120, sdk.COMM_SUCCESS, 0)       # 11.98 V at rest
+    PH.write4ByteTxRx(port, 1, 116, 4000)
+    bus.step(0.2)
+    assert PH.read2ByteTxRx(port, 1, 144) == (116, sdk.COMM_SUCCESS, 0)

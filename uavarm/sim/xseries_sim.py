@@ -29,7 +29,8 @@ Where the e-manual is silent this simulator chooses, and says so:
   first-order lag in substeps of at most 1 ms.
 - In a SYNC_READ the k-th listed servo answers after the k servos before it, each taking its
   Return Delay Time and a status packet as long as its own (no stuffing assumed in theirs).
-- Broadcast PING is answered after Return Delay Time (one servo; no ID-ordered slots).
+- Broadcast PING is answered after Return Delay Time: the e-manual's order among several
+  servos is not modelled (their answers would overlap on the bus).
 """
 from __future__ import annotations
 
@@ -321,6 +322,12 @@ class XServo:
 
     def power_off(self) -> None:
         self.powered = False
+
+    def turn_by_hand(self, position: float) -> None:
+        """Someone turns the shaft to `position` (units), as on the bench with the torque off."""
+        self._pos = self._profile = float(position)
+        self._profile_speed = 0.0
+        self._update_present(0.0)
 
     # ------------------------------------------------------------ hardware
 
