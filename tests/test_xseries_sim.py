@@ -15,9 +15,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from sdk_capture import packet_handler, sdk_packet
-from test_dxl_protocol2 import packet, status, with_crc
+from test_dxl_protocol2 import packet, status, stuff, with_crc
 from uavarm.sim.ax12_sim import AX12Bus, SdkPort, Supply
-from uavarm.sim.xseries_sim import XL430_W250, XM430_W350, XServo
+from uavarm.sim.xseries_sim import XL430_W250, XM430_W350, XServo, unstuffed
 
 PH = packet_handler(2.0)
 BAUD = 1_000_000
@@ -153,6 +153,12 @@ def test_any_bytes_from_the_wire_leave_it_answering(chunks):
     raw(bus, b"".join(chunks))
     bus.step(0.2)
     assert PH.ping(port, 1)[1:] == (sdk.COMM_SUCCESS, 0)
+
+
+@given(st.lists(st.sampled_from([b"\xff", b"\xfd", b"\x00", b"\xff\xff\xfd"]), max_size=16))
+def test_unstuffing_undoes_the_written_stuffing(pieces):
+    body = b"".join(pieces)
+    assert unstuffed(stuff(body)) == body
 
 
 def test_eeprom_write_with_torque_on_is_refused():

@@ -28,7 +28,7 @@ Where the e-manual is silent this simulator chooses, and says so:
   behind it starts the profile again from rest. The shaft follows the profile through the
   first-order lag in substeps of at most 1 ms.
 - In a SYNC_READ the k-th listed servo answers after the k servos before it, each taking its
-  Return Delay Time and a status packet as long as its own (no stuffing assumed in theirs).
+  Return Delay Time and a status packet with the data asked for (no stuffing assumed in theirs).
 - Broadcast PING is answered after Return Delay Time: the e-manual's order among several
   servos is not modelled (their answers would overlap on the bus).
 """
@@ -88,15 +88,14 @@ class Model:
     stall_torque_nm: float
     stall_amps: float
     temperature_limit: int
-    max_voltage_limit: int          # 0.1 V
-    min_voltage_limit: int
-    voltage_range: tuple[int, int]
+    max_voltage_limit: int          # 0.1 V; also the top of both voltage limits' range
+    min_voltage_limit: int          # and the bottom of it
     velocity_limit: int
     current_sensing: bool           # Present Current (XM430) or Present Load (XL430) at 126
 
 
-XM430_W350 = Model("XM430-W350", 1020, 46.0, 4.1, 2.3, 80, 160, 95, (95, 160), 350, True)
-XL430_W250 = Model("XL430-W250", 1060, 57.0, 1.5, 1.4, 72, 140, 60, (60, 140), 265, False)
+XM430_W350 = Model("XM430-W350", 1020, 46.0, 4.1, 2.3, 80, 160, 95, 350, True)
+XL430_W250 = Model("XL430-W250", 1060, 57.0, 1.5, 1.4, 72, 140, 60, 265, False)
 
 
 @dataclass(frozen=True)
@@ -109,7 +108,7 @@ class Register:
 
 
 def registers(model: Model) -> tuple[Register, ...]:
-    volts = model.voltage_range
+    volts = (model.min_voltage_limit, model.max_voltage_limit)
     return (
         Register(0, 2, "model_number", None),
         Register(6, 1, "firmware_version", None),
@@ -187,11 +186,15 @@ def stuffed(body: bytes) -> bytes:
 
 
 def unstuffed(body: bytes) -> bytes:
+    """Byte stuffing undone: the FD that follows each FF FF FD dropped."""
     out = bytearray()
+    stuffing = False
     for b in body:
-        if b == 0xFD and out[-3:] == b"\xff\xff\xfd":
-            continue                      # the stuffing byte after FF FF FD
+        if stuffing and b == 0xFD:
+            stuffing = False
+            continue
         out.append(b)
+        stuffing = out[-3:] == b"\xff\xff\xfd"
     return bytes(out)
 
 
@@ -437,10 +440,11 @@ class XServo:
         ids = list(params[4:])
         if self.id not in ids:
             return None
-        error, data = self._read(params[0] | params[1] << 8, params[2] | params[3] << 8)
+        n = params[2] | params[3] << 8
+        error, data = self._read(params[0] | params[1] << 8, n)
         if self.table[68] < 1:
             return None
-        slot = RETURN_DELAY_UNIT * self.table[9] + (11 + len(data)) * self.byte_time
+        slot = RETURN_DELAY_UNIT * self.table[9] + (11 + n) * self.byte_time
         delay = ids.index(self.id) * slot + RETURN_DELAY_UNIT * self.table[9]
         return Reply(delay, status_packet(self.id, self._alert(error), data))
 
