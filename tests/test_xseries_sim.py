@@ -9,7 +9,6 @@ profile's times (t1 = 64 Vprf / Aprf ms, t2 = 64 dPos / Vprf ms) and the no-load
 """
 from __future__ import annotations
 
-
 import dynamixel_sdk as sdk
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
