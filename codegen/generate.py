@@ -20,7 +20,7 @@ import jinja2
 import sympy as sp
 
 from ..model import (attitude, collision, config, filters, inertia, kinematics, messages, pose_tolerance, quaternion,
-                     servo, swept, velocity)
+                     servo, servo_models, swept, velocity)
 from . import approx, board_ioc
 from .remember import remembered
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
@@ -382,6 +382,7 @@ def params_context(m: config.Model):
         "step_per_decivolt": float32_literal(servo.supply_step_per_decivolt(m)),
         "gap_max": servo.gap_max_units(m),
         "angle_limits": [servo.unit_range(m, j) for j in range(3)],
+        "baud_register": servo_models.baud_register(m.servo_model, m.servo_baud),
         "return_delay": m.servo_return_delay_us // 2,
         "boot_ms": ms(m.servo_boot_time),
         "silence_ms": ms(m.link_silence_timeout),

@@ -5,7 +5,7 @@ import math
 
 import sympy as sp
 
-from .config import NO_LOAD_RPM, NO_LOAD_VOLTS, RPM_PER_SPEED_UNIT, Model
+from .config import RPM_PER_SPEED_UNIT, Model
 
 
 def units_per_rad(m: Model) -> sp.Expr:
@@ -63,8 +63,9 @@ def unit_range(m: Model, joint: int) -> tuple[int, int]:
 
 def supply_step_per_decivolt(m: Model) -> sp.Expr:
     """The most a goal may move per tick (rad) per 0.1 V the servos report: the share
-    servo.speed_margin of the no-load speed, which falls in proportion to the supply."""
-    rpm_per_decivolt = sp.nsimplify(NO_LOAD_RPM, rational=True) / sp.nsimplify(NO_LOAD_VOLTS, rational=True) / 10
+    servo.speed_margin of the servo model's no-load speed, which falls in proportion to the supply."""
+    facts = m.servo_model
+    rpm_per_decivolt = sp.nsimplify(facts.no_load_rpm, rational=True) / sp.nsimplify(facts.no_load_volts, rational=True) / 10
     margin = sp.nsimplify(m.servo_speed_margin, rational=True)
     return margin * rpm_per_decivolt * 2 * sp.pi / 60 / sp.nsimplify(m.sample_rate, rational=True)
 
