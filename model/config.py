@@ -33,7 +33,6 @@ def gyro_dps_per_lsb(range_dps: int) -> float:
     16.4 LSB/(deg/s) round it)."""
     return range_dps / 32768
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
-RPM_PER_SPEED_UNIT = servo_models.AX_12A.rpm_per_speed_unit   # AX-12A Moving Speed, joint mode
 # Every length of the model (mm) is at most 10 m: the generated code is float32, and the
 # code generator's exact SymPy checks take minutes on lengths like 1e300. A link is 0 or at
 # least 1 um long, for the same reason at the other end (1e-300).

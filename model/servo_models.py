@@ -23,7 +23,7 @@ class Register(NamedTuple):
     name: str          # as the e-manual's control table names it
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)     # one instance per model (MODELS): compared and hashed as itself
 class ServoModel:
     name: str
     protocol: int                 # Dynamixel protocol the servo speaks out of the box (1: 1.0, 2: 2.0)

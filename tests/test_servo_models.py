@@ -156,7 +156,6 @@ def test_x_series_bauds_load(tmp_path, baud):
     (AX_TRAVEL, "units_max = 1023\nrange_deg = 360.0", "servo.range_deg",
      "the AX-12A's 1023 units span 300.0 deg"),
     (AX_TRAVEL, "units_max = 4095\nrange_deg = 300.0", "servo.units_max", "the AX-12A's positions run 0..1023"),
-    ("working_speed_rpm = 59.0", "working_speed_rpm = 114.0", "servo.working_speed_rpm", "<= 113.5"),
 ])
 def test_bad_servo_model_values_name_the_key(tmp_path, old, new, key, words):
     msg = broken(tmp_path, old, new)
@@ -231,6 +230,10 @@ def test_xm430_file_generates_its_defines(xm430_generated):
     for j, limit in enumerate(model.limits, 1):
         assert got[f"MODEL_SERVO{j}_CW_LIMIT"] == math.ceil(2048 + limit.min_deg * per_deg - 1e-9)
         assert got[f"MODEL_SERVO{j}_CCW_LIMIT"] == math.floor(2048 + limit.max_deg * per_deg + 1e-9)
+    # the speeds in Profile Velocity units of 0.229 rpm (park 10, transit 30, working 59 rpm)
+    assert (got["MODEL_PARK_SPEED"], got["MODEL_TRANSIT_SPEED"], got["MODEL_WORKING_SPEED"]) == (44, 131, 258)
+    assert got["MODEL_WORKING_STEP"] == pytest.approx(258 * 0.229 * 2 * math.pi / 60 / model.sample_rate, rel=1e-6)
+    assert got["MODEL_UNITS_PER_S_PER_SPEED"] == pytest.approx(0.229 * 6 * per_deg, rel=1e-6)
     # the goals' speed limit at the supply: the XM430-W350's 46 rpm at 12 V, not the AX-12A's 59
     assert got["MODEL_STEP_PER_DECIVOLT"] == pytest.approx(
         model.servo_speed_margin * 46.0 / 12.0 / 10 * 2 * math.pi / 60 / model.sample_rate, rel=1e-6)
