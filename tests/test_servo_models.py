@@ -15,6 +15,7 @@ import pytest
 
 from conftest import once_per_run
 from test_model_config import BASE, _defines, broken, load_text
+from uavarm.build import variants
 from uavarm.codegen import generate
 from uavarm.model import config, servo_models
 
@@ -181,6 +182,17 @@ def test_x_series_files_are_checked_against_the_x_series(tmp_path, text, key, wo
         config.load(path)
     msg = str(err.value)
     assert str(path) in msg and f": {key}: " in msg and words in msg, msg
+
+
+def test_the_simulator_refuses_an_x_series_variant():
+    """The simulated board's servos and the bus driver are AX-12As: an X-series variant would
+    be simulated with the wrong servo, so it is refused before anything is generated."""
+    changes = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.range_deg": 359.912109375,
+               "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
+    assert config.parse(variants.edited_text(changes).encode(), Path("arm.toml")).servo_model.name == "XM430-W350"
+    with pytest.raises(variants.VariantError, match="servo.model: the simulated board's servos .* are AX-12As"):
+        variants.model_of(changes)
+    assert variants.model_of({"servo.model": "AX-12A"}).servo_model is servo_models.AX_12A
 
 
 # --- the generated defines ----------------------------------------------------------------------
