@@ -20,7 +20,7 @@ import jinja2
 import sympy as sp
 
 from ..model import (attitude, collision, config, filters, inertia, kinematics, messages, pose_tolerance, quaternion,
-                     servo, swept, velocity)
+                     servo, servo_models, swept, velocity)
 from . import approx, board_ioc
 from .remember import remembered
 from .printer import c, cse_lines, float32_literal, op_count, temp_line
@@ -347,7 +347,7 @@ def urdf_context(m: config.Model):
               for (name, b), parts in zip(inertia.link_bodies(m).items(), inertia.link_parts(m).values())}
     return {"joints": joints, "bodies": bodies, "offset": [metres(v) for v in m.mount_offset], "l1": metres(m.L1),
             "half_l1": metres(-m.L1 / 2), "l3": metres(m.L3),
-            "velocity": f"{float(servo.rad_per_s(servo.speed_units(m.working_speed_rpm))):.6g}"}
+            "velocity": f"{float(servo.rad_per_s(servo.speed_units(m.working_speed_rpm, m.servo_model), m.servo_model)):.6g}"}
 
 
 def params_context(m: config.Model):
@@ -366,12 +366,13 @@ def params_context(m: config.Model):
         "leg_half_width": float32_literal(sp.rad(sp.nsimplify(m.leg_half_width, rational=True))),
         "leg_distance": float32_literal(m.leg_distance),
         "lengths": [float32_literal(v) for v in (m.L1, m.L2, m.L3)],
-        "park_speed": servo.speed_units(m.park_speed_rpm),
-        "transit_speed": servo.speed_units(m.transit_speed_rpm),
-        "working_speed": servo.speed_units(m.working_speed_rpm),
+        "park_speed": servo.speed_units(m.park_speed_rpm, m.servo_model),
+        "transit_speed": servo.speed_units(m.transit_speed_rpm, m.servo_model),
+        "working_speed": servo.speed_units(m.working_speed_rpm, m.servo_model),
         "bench_torque_limit": servo.bench_torque_limit(m),
         # how far the goals move per tick at each speed (the Moving Speed the register holds)
-        "steps": {name: float32_literal(servo.rad_per_s(servo.speed_units(rpm)) / sp.nsimplify(m.sample_rate, rational=True))
+        "steps": {name: float32_literal(servo.rad_per_s(servo.speed_units(rpm, m.servo_model), m.servo_model)
+                                       / sp.nsimplify(m.sample_rate, rational=True))
                   for name, rpm in (("park", m.park_speed_rpm), ("transit", m.transit_speed_rpm),
                                     ("working", m.working_speed_rpm))},
         "axis_hold": float32_literal(m.motion.axis_hold_radius),
@@ -382,6 +383,7 @@ def params_context(m: config.Model):
         "step_per_decivolt": float32_literal(servo.supply_step_per_decivolt(m)),
         "gap_max": servo.gap_max_units(m),
         "angle_limits": [servo.unit_range(m, j) for j in range(3)],
+        "baud_register": servo_models.baud_register(m.servo_model, m.servo_baud),
         "return_delay": m.servo_return_delay_us // 2,
         "boot_ms": ms(m.servo_boot_time),
         "silence_ms": ms(m.link_silence_timeout),

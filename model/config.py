@@ -14,7 +14,7 @@ import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import pose_tolerance
+from . import pose_tolerance, servo_models
 
 DEFAULT_MODEL = Path(__file__).with_name("manipulator.toml")
 JOINTS = ("theta1", "theta2", "theta3")
@@ -33,12 +33,6 @@ def gyro_dps_per_lsb(range_dps: int) -> float:
     16.4 LSB/(deg/s) round it)."""
     return range_dps / 32768
 DLPF_BANDWIDTHS = {260: 0, 184: 1, 94: 2, 44: 3, 21: 4, 10: 5, 5: 6}   # DLPF_CFG, accel Hz
-RPM_PER_SPEED_UNIT = 0.111    # AX-12A Moving Speed, joint mode (AX-12A e-manual)
-SPEED_RPM_MAX = 1023 * RPM_PER_SPEED_UNIT        # AX-12A Moving Speed register limit
-# The AX-12A's no-load speed, 59 rpm at 12 V (e-manual), falls in proportion to its supply
-# (the legacy AX-12's 0.196 s/60 deg at 10 V, 51 rpm, lies just above that line).
-NO_LOAD_RPM = 59.0
-NO_LOAD_VOLTS = 12.0
 # Every length of the model (mm) is at most 10 m: the generated code is float32, and the
 # code generator's exact SymPy checks take minutes on lengths like 1e300. A link is 0 or at
 # least 1 um long, for the same reason at the other end (1e-300).
@@ -46,23 +40,21 @@ LENGTH_MAX_MM = 10_000.0
 LENGTH_MIN_MM = 0.001
 # A link shorter than 1 mm is a length in metres by mistake (L2 = 0.065 for 65 mm).
 LINK_PLAUSIBLE_MM = 1.0
-# AX-12A Baud Rate register n = 0..254: the servo runs at 2,000,000 / (n + 1) bit/s, and a
-# UART hears another within 3 % (AX-12A e-manual, Baud Rate).
-AX12_BAUD_CLOCK = 2_000_000
-AX12_BAUD_REGISTER_MAX = 254
+# A UART hears another baud within 3 % (the e-manuals' Baud Rate tables).
 BAUD_TOLERANCE = 0.03
 # The slowest heartbeat (s): the drone side counts a link silent after 1.5 s without one
 # and waits 1 s for one to confirm a command, so three and two must fit in those.
 HEARTBEAT_SLOWEST_S = 0.5
 
 # Every key of the model file, by table; the imu.accel_bias, imu.accel_scale,
-# imu.gyro_bias_dps, imu.gyro_scale, imu.gyro_cross_axis and servo.response_lag calibration may be absent. Any other key is refused (a typo would
+# imu.gyro_bias_dps, imu.gyro_scale, imu.gyro_cross_axis and servo.response_lag calibration and
+# servo.model (then an AX-12A) may be absent. Any other key is refused (a typo would
 # otherwise be ignored, or reported as the key it was meant to be missing).
 _KEYS_BY_TABLE = {
     "geometry": "L1 L2 L3",
     "joints.theta1": "min max", "joints.theta2": "min max", "joints.theta3": "min max",
     "collision": "body_z leg_angles leg_half_width leg_distance",
-    "servo": "baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
+    "servo": "model baud units_max range_deg return_delay_us park_speed_rpm transit_speed_rpm "
              "working_speed_rpm speed_margin boot_time response_lag zero_tolerance_deg bench_torque_limit",
     "servo.theta1": "id zero direction", "servo.theta2": "id zero direction",
     "servo.theta3": "id zero direction",
@@ -129,6 +121,7 @@ class Model:
     leg_angles: tuple[float, ...]
     leg_half_width: float
     leg_distance: float
+    servo_model: servo_models.ServoModel   # servo.model's facts (model/servo_models.py)
     servo_baud: int
     servo_units_max: int
     servo_range_deg: float
@@ -375,8 +368,10 @@ def parse(raw: bytes, path: Path) -> Model:
             raise r.fail(f"joints.{name}", f"min ({lo}) must be less than max ({hi})")
         limits.append(JointLimit(lo, hi))
 
+    servo_model = _servo_model(r)
     units_max = r.integer("servo.units_max", lo=1, hi=65535)
     range_deg = r.number("servo.range_deg", lo=1.0, hi=360.0)   # (1e-300 degrees divides by zero)
+    _check_servo_resolution(r, servo_model, units_max, range_deg)
     servos = []
     for name in JOINTS:
         servos.append(Servo(
@@ -419,14 +414,15 @@ def parse(raw: bytes, path: Path) -> Model:
         leg_angles=r.number_list("collision.leg_angles", lo=-180.0, hi=180.0),
         leg_half_width=r.number("collision.leg_half_width", nonnegative=True, hi=90.0),
         leg_distance=r.number("collision.leg_distance", positive=True, hi=LENGTH_MAX_MM),
-        servo_baud=_servo_baud(r),
+        servo_model=servo_model,
+        servo_baud=_servo_baud(r, servo_model),
         servo_units_max=units_max,
         servo_range_deg=range_deg,
         servos=tuple(servos),
         servo_return_delay_us=return_delay,
-        park_speed_rpm=r.number("servo.park_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
-        transit_speed_rpm=r.number("servo.transit_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
-        working_speed_rpm=r.number("servo.working_speed_rpm", lo=RPM_PER_SPEED_UNIT, hi=SPEED_RPM_MAX),
+        park_speed_rpm=_speed_rpm(r, "servo.park_speed_rpm", servo_model),
+        transit_speed_rpm=_speed_rpm(r, "servo.transit_speed_rpm", servo_model),
+        working_speed_rpm=_speed_rpm(r, "servo.working_speed_rpm", servo_model),
         servo_speed_margin=r.number("servo.speed_margin", positive=True, hi=1.0),
         servo_boot_time=r.number("servo.boot_time", nonnegative=True, hi=10.0),
         servo_response_lag=(r.number("servo.response_lag", nonnegative=True, hi=SERVO_LAG_MAX_S)
@@ -511,16 +507,41 @@ def _link(r: _Reader, key: str, zero_allowed: bool = False) -> float:
     return value
 
 
-def _servo_baud(r: _Reader) -> int:
-    """The bus baud: one the AX-12A runs at, 2 Mbaud / (n + 1), within the UART's tolerance."""
+def _servo_model(r: _Reader) -> servo_models.ServoModel:
+    """servo.model's facts; an AX-12A when the key is absent (model files before the key)."""
+    key = "servo.model"
+    if not r.has(key):
+        return servo_models.MODELS[servo_models.DEFAULT]
+    return servo_models.MODELS[r.choice(key, tuple(servo_models.MODELS))]
+
+
+def _check_servo_resolution(r: _Reader, servo: servo_models.ServoModel, units_max: int, range_deg: float) -> None:
+    """servo.units_max and servo.range_deg stay in the file (the servo map is computed from
+    them) but must be the chosen servo's travel: positions 0..units_max over range_deg."""
+    if units_max != servo.units_max:
+        raise r.fail("servo.units_max", f"the {servo.name}'s positions run 0..{servo.units_max} "
+                                        f"(servo.model = \"{servo.name}\"), got {units_max}")
+    if Fraction(range_deg) != servo.units_max * servo.deg_per_unit:
+        raise r.fail("servo.range_deg", f"the {servo.name}'s {servo.units_max} units span {servo.range_deg!r} deg "
+                                        f"({float(servo.deg_per_unit):.6g} deg per unit; servo.model = "
+                                        f"\"{servo.name}\"), got {range_deg!r}")
+
+
+def _speed_rpm(r: _Reader, key: str, servo: servo_models.ServoModel) -> float:
+    """A goal speed the servo's speed register holds: one unit up to its upper bound."""
+    return r.number(key, lo=servo.rpm_per_speed_unit, hi=servo.speed_units_max * servo.rpm_per_speed_unit)
+
+
+def _servo_baud(r: _Reader, servo: servo_models.ServoModel) -> int:
+    """The bus baud: one the servo runs at (its Baud Rate register's rates), within the UART's tolerance."""
     key = "servo.baud"
-    baud = r.integer(key, lo=7843, hi=1_000_000)
-    rates = {n: AX12_BAUD_CLOCK / (n + 1) for n in range(AX12_BAUD_REGISTER_MAX + 1)}
-    n = min(rates, key=lambda n: abs(rates[n] / baud - 1))
+    rates = servo.bauds
+    baud = r.integer(key, lo=round(min(rates.values())), hi=round(max(rates.values())))
+    n = servo_models.baud_register(servo, baud)
     if abs(rates[n] / baud - 1) > BAUD_TOLERANCE:
-        raise r.fail(key, f"an AX-12A runs at 2,000,000 / (n + 1) bit/s (Baud Rate register n = 0.."
-                          f"{AX12_BAUD_REGISTER_MAX}); the nearest to {baud}, {rates[n]:.0f} (n = {n}), is "
-                          f"{rates[n] / baud - 1:+.1%} off, beyond the UART's {BAUD_TOLERANCE:.0%} tolerance")
+        raise r.fail(key, f"an {servo.name} runs at {servo.baud_rule}; the nearest to {baud}, {rates[n]:.0f} "
+                          f"(n = {n}), is {rates[n] / baud - 1:+.1%} off, beyond the UART's "
+                          f"{BAUD_TOLERANCE:.0%} tolerance")
     return baud
 
 
@@ -688,7 +709,8 @@ def _check_servo_travel(r: _Reader, model: Model) -> None:
             if not 0 <= units <= model.servo_units_max:
                 raise r.fail(f"joints.{name}",
                              f"limit {deg} deg maps to servo position {float(units):.1f}, outside "
-                             f"0..{model.servo_units_max} (check servo.{name}.zero)")
+                             f"0..{model.servo_units_max}, the {model.servo_model.name}'s travel "
+                             f"(check servo.{name}.zero)")
 
 
 def _off_by(offsets_deg) -> str:

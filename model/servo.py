@@ -1,11 +1,13 @@
-"""Joint angle <-> AX-12A position units, from the model file's zero and direction."""
+"""Joint angle <-> servo position units, from the model file's zero and direction; goal speeds
+in the servo model's speed register units."""
 from __future__ import annotations
 
 import math
 
 import sympy as sp
 
-from .config import NO_LOAD_RPM, NO_LOAD_VOLTS, RPM_PER_SPEED_UNIT, Model
+from .config import Model
+from .servo_models import ServoModel
 
 
 def units_per_rad(m: Model) -> sp.Expr:
@@ -23,9 +25,10 @@ def units_to_joint(m: Model, joint: int, units) -> sp.Expr:
     return s.direction * (units - s.zero) / units_per_rad(m)
 
 
-def speed_units(rpm: float) -> int:
-    """Moving Speed register value of a speed in rpm: 1..1023 (0 would mean "no limit")."""
-    return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
+def speed_units(rpm: float, servo: ServoModel) -> int:
+    """The goal-speed register value (AX-12A Moving Speed, X-series Profile Velocity) of a speed
+    in rpm: 1..its upper bound (0 would mean "no limit")."""
+    return min(servo.speed_units_max, max(1, round(rpm / servo.rpm_per_speed_unit)))
 
 
 # Torque Limit's full scale (AX-12A e-manual: 1023 = the maximum torque), and what the firmware
@@ -41,16 +44,16 @@ def bench_torque_limit(m: Model) -> int:
     return min(TORQUE_LIMIT_SET, round(m.servo_bench_torque_limit * TORQUE_LIMIT_MAX))
 
 
-def rad_per_s(speed: int) -> sp.Expr:
-    """The joint speed (rad/s) a Moving Speed register value allows: speed x 0.111 rpm."""
-    return speed * sp.nsimplify(RPM_PER_SPEED_UNIT, rational=True) * 2 * sp.pi / 60
+def rad_per_s(speed: int, servo: ServoModel) -> sp.Expr:
+    """The joint speed (rad/s) a goal-speed register value allows: speed x its unit (AX-12A 0.111 rpm)."""
+    return speed * sp.nsimplify(servo.rpm_per_speed_unit, rational=True) * 2 * sp.pi / 60
 
 
 def units_per_s_per_speed_unit(m: Model) -> sp.Expr:
-    """Position units per second that one Moving Speed unit allows: rpm x 6 deg/s per rpm x
+    """Position units per second that one goal-speed unit allows: rpm x 6 deg/s per rpm x
     the model's units per degree."""
     units, degrees = (sp.nsimplify(v, rational=True) for v in (m.servo_units_max, m.servo_range_deg))
-    return sp.nsimplify(RPM_PER_SPEED_UNIT, rational=True) * 6 * units / degrees
+    return sp.nsimplify(m.servo_model.rpm_per_speed_unit, rational=True) * 6 * units / degrees
 
 
 def unit_range(m: Model, joint: int) -> tuple[int, int]:
@@ -63,8 +66,9 @@ def unit_range(m: Model, joint: int) -> tuple[int, int]:
 
 def supply_step_per_decivolt(m: Model) -> sp.Expr:
     """The most a goal may move per tick (rad) per 0.1 V the servos report: the share
-    servo.speed_margin of the no-load speed, which falls in proportion to the supply."""
-    rpm_per_decivolt = sp.nsimplify(NO_LOAD_RPM, rational=True) / sp.nsimplify(NO_LOAD_VOLTS, rational=True) / 10
+    servo.speed_margin of the servo model's no-load speed, which falls in proportion to the supply."""
+    facts = m.servo_model
+    rpm_per_decivolt = sp.nsimplify(facts.no_load_rpm, rational=True) / sp.nsimplify(facts.no_load_volts, rational=True) / 10
     margin = sp.nsimplify(m.servo_speed_margin, rational=True)
     return margin * rpm_per_decivolt * 2 * sp.pi / 60 / sp.nsimplify(m.sample_rate, rational=True)
 
@@ -74,5 +78,5 @@ def gap_max_units(m: Model) -> int:
     response lag at the working speed and one working step. Further
     behind, the servo is slower than the motion allows for (blocked, or a supply below what
     it reports)."""
-    rate = float(rad_per_s(speed_units(m.working_speed_rpm)) * units_per_rad(m))      # units/s
+    rate = float(rad_per_s(speed_units(m.working_speed_rpm, m.servo_model), m.servo_model) * units_per_rad(m))   # units/s
     return math.ceil(rate * (2 * m.servo_response_lag + 1 / m.sample_rate))

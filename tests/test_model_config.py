@@ -11,7 +11,7 @@ import pytest
 import oracles
 from conftest import once_per_run
 from uavarm.codegen import generate
-from uavarm.model import config, pose_tolerance
+from uavarm.model import config, pose_tolerance, servo_models
 
 BASE = config.DEFAULT_MODEL.read_text()
 
@@ -141,7 +141,7 @@ def test_every_other_key_is_required(tmp_path):
             (stack.append((f"{prefix}{k}.", v)) if isinstance(v, dict) else leaves.append(f"{prefix}{k}"))
     assert sorted(leaves) == sorted(config.KNOWN_KEYS)
     optional = {"imu.accel_bias", "imu.accel_scale", "imu.gyro_bias_dps", "imu.gyro_scale", "imu.gyro_cross_axis",
-                "servo.response_lag"}
+                "servo.response_lag", "servo.model"}
     for key in leaves:
         doc = tomlkit.parse(BASE)
         *tables, name = key.split(".")
@@ -494,7 +494,7 @@ def test_speed_units_examples():
     """Worked examples of round(rpm / 0.111): 10 rpm -> 90, 59 rpm (no-load at 12 V) -> 532,
     the 1023 ceiling at 113.5 rpm, and the floor of 1 (0 would mean "no speed limit")."""
     from uavarm.model import servo
-    assert [servo.speed_units(r) for r in (10.0, 59.0, 113.5, 0.111, 0.05)] == [90, 532, 1023, 1, 1]
+    assert [servo.speed_units(r, servo_models.AX_12A) for r in (10.0, 59.0, 113.5, 0.111, 0.05)] == [90, 532, 1023, 1, 1]
 
 
 # --- poses within the servos' zero tolerance --------------------------------------------------

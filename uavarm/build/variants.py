@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import cbuild, firmware
-from ..model import config
+from ..model import config, servo_models
 from ..toml_text import toml_value
 
 SIM_BUILD = cbuild.ROOT / "build" / "sim"
@@ -161,9 +161,13 @@ def edited_text(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -
 def model_of(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> config.Model:
     """The edited model as the loader reads it, without generating or building anything."""
     try:
-        return config.parse(edited_text(changes, base).encode(), Path(base))
+        model = config.parse(edited_text(changes, base).encode(), Path(base))
     except config.ModelError as exc:
         raise VariantError(str(exc)) from None
+    if model.servo_model.name != servo_models.DEFAULT:
+        raise VariantError(f"{base}: servo.model: the simulated board's servos and the firmware's bus driver "
+                           f"are {servo_models.DEFAULT}s; a {model.servo_model.name} variant cannot be simulated")
+    return model
 
 
 def _values(model: config.Model) -> str:

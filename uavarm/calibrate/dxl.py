@@ -11,7 +11,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..model.config import AX12_BAUD_CLOCK, AX12_BAUD_REGISTER_MAX
+from ..model import servo_models
 
 PING, READ, WRITE = 0x01, 0x02, 0x03
 MODEL_NUMBER, ID, BAUD_RATE = 0, 3, 4          # AX-12A control table addresses (EEPROM)
@@ -24,7 +24,7 @@ POWER_UP_S = 0.5                                # the board's bridge powers the 
 def baud_register(baud: float) -> int:
     """The AX-12A Baud Rate register value n whose 2,000,000 / (n + 1) bit/s is nearest baud
     (the model file's servo.baud is checked to be within the UART's 3 % of one)."""
-    return min(range(AX12_BAUD_REGISTER_MAX + 1), key=lambda n: abs(AX12_BAUD_CLOCK / (n + 1) / baud - 1))
+    return servo_models.baud_register(servo_models.AX_12A, baud)
 
 
 class DxlError(Exception):
