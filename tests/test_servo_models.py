@@ -9,6 +9,7 @@ control tables), not taken from model/servo_models.py:
 """
 import math
 import re
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -258,3 +259,17 @@ def test_committed_defines_are_the_ax12a(model):
     assert got["MODEL_DXL_DEG_PER_UNIT"] == pytest.approx(300 / 1023, rel=1e-6)
     assert got["MODEL_STEP_PER_DECIVOLT"] == pytest.approx(
         model.servo_speed_margin * 59.0 / 12.0 / 10 * 2 * math.pi / 60 / model.sample_rate, rel=1e-6)
+
+
+@pytest.mark.parametrize("which", ["committed", "XM430-W350"])
+def test_the_bus_driver_builds_only_for_the_servo_it_speaks_to(which, xm430_generated):
+    """servo_bus.c speaks Protocol 1.0: compiled against an X-series model's generated code it
+    stops the build with a message naming the key, against the committed AX-12A it compiles."""
+    generated = ROOT / "generated" if which == "committed" else xm430_generated
+    app = ROOT / "firmware_stm32" / "App"
+    run = subprocess.run(["cc", "-std=c99", "-fsyntax-only", "-I", str(generated), "-I", str(app / "Inc"),
+                          str(app / "Src" / "servo_bus.c")], capture_output=True, text=True)
+    if which == "committed":
+        assert run.returncode == 0, run.stderr
+    else:
+        assert run.returncode != 0 and "servo.model names a Protocol 2.0 servo" in run.stderr
