@@ -272,4 +272,4 @@ def test_the_bus_driver_builds_only_for_the_servo_it_speaks_to(which, xm430_gene
     if which == "committed":
         assert run.returncode == 0, run.stderr
     else:
-        assert run.returncode != 0 and "servo.model names a Protocol 2.0 servo" in run.stderr
+        assert run.returncode != 0 and "servo.model names an X-series servo (Dynamixel Protocol 2)" in run.stderr

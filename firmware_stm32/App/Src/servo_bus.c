@@ -598,5 +598,5 @@ void sbus_poll(sbus_t *bus)
 /* This bus driver speaks Protocol 1.0 to AX-12A servos: a model file naming another servo
  * (servo.model) stops the build here rather than making firmware its servos cannot hear. */
 #if MODEL_DXL_PROTOCOL != 1u
-#error "servo.model names a Protocol 2.0 servo: this firmware's bus driver speaks Protocol 1.0 (AX-12A) only"
+#error "servo.model names an X-series servo (Dynamixel Protocol 2): this firmware's bus driver speaks Protocol 1 to AX-12A servos only"
 #endif
