@@ -33,9 +33,9 @@ def bad_ik_lib():
     includes: its hash joins the build's flags so an edited kinematics.c rebuilds)."""
     kin = generated.GENERATED / "kinematics.c"
     sources = [s for s in firmware.app_sources() if s.name != "kinematics.c"]
-    sources += [HARNESS / "bad_ik.c", firmware.HOST_PORT / "host_port.c"]
+    sources += [HARNESS / "bad_ik.c", *firmware.host_sources()]
     headers = (generated.headers() + [firmware.APP / "Inc" / h for h in firmware.APP_HEADERS]
-               + [firmware.HOST_PORT / "host_port.h", HARNESS / "bad_ik.h"])
+               + firmware.host_headers() + [HARNESS / "bad_ik.h"])
     tag = hashlib.sha256(kin.read_bytes()).hexdigest()[:16]
     return cbuild.load("firmware_bad_ik", sources, headers,
                        include_dirs=[generated.GENERATED, firmware.APP / "Inc", firmware.HOST_PORT, HARNESS],

@@ -49,10 +49,19 @@ def app_sources(gen_dir: Path = generated.GENERATED) -> list[Path]:
     return listed("APP_SOURCES") + gen
 
 
+def host_sources() -> list[Path]:
+    """The host's side of the port (in place of the board's HAL) and its main loop."""
+    return [HOST_PORT / "host_port.c", HOST_PORT / "host_loop.c"]
+
+
+def host_headers() -> list[Path]:
+    return [HOST_PORT / "host_port.h", HOST_PORT / "host_loop.h"]
+
+
 def load(gen_dir: Path = generated.GENERATED):
     """(ffi, lib) of the application, the generated code and the host port."""
-    headers = generated.headers(gen_dir) + [APP / "Inc" / h for h in APP_HEADERS] + [HOST_PORT / "host_port.h"]
-    return cbuild.load("firmware", app_sources(gen_dir) + [HOST_PORT / "host_port.c"], headers,
+    headers = generated.headers(gen_dir) + [APP / "Inc" / h for h in APP_HEADERS] + host_headers()
+    return cbuild.load("firmware", app_sources(gen_dir) + host_sources(), headers,
                        include_dirs=[gen_dir, APP / "Inc", HOST_PORT])
 
 

@@ -215,6 +215,8 @@ class AX12:
         # What turns the shaft from outside, when Present Load is read: a function giving N m,
         # CCW (position growing) positive, e.g. gravity on the arm (SimBoard); None: nothing.
         self.outside_torque = None
+        # Called just before a whole packet is acted on: the bus brings the motion up to then.
+        self.before_packet = None
         self.powered = True
         self.table = bytearray(TABLE_SIZE)
         self._pos = float(position)         # shaft, in units
@@ -334,6 +336,13 @@ class AX12:
 
     # ------------------------------------------------------------- receiving
 
+    @staticmethod
+    def one_packet(data: bytes) -> bool:
+        """data is one whole packet as receive() parses it: from an empty buffer, a packet
+        is complete only at its last byte."""
+        return (len(data) >= 6 and data[0] == data[1] == 0xFF and data[2] != 0xFF and data[3] >= 2
+                and len(data) == data[3] + 4)
+
     def receive(self, byte: int, t: float) -> Reply | None:
         """One byte from the wire, whose stop bit ended at time t (s)."""
         rx = self._rx
@@ -356,6 +365,8 @@ class AX12:
             return None
         pkt = bytes(rx)
         rx.clear()
+        if self.before_packet is not None:
+            self.before_packet()
         return self._on_packet(pkt)
 
     def _answers(self, inst: int) -> bool:
@@ -514,9 +525,10 @@ class AX12:
         cap = self.max_speed()
         return cap if units == 0 else min(units * RPM_PER_SPEED_UNIT * UNITS_PER_S_PER_RPM, cap)
 
-    def step(self, dt: float) -> None:
-        """Advance the servo by dt seconds. (Reads the table by address: this runs for every
-        byte on the bus, so it avoids the by-name register helpers.)"""
+    def step(self, dt: float, present: bool = True) -> None:
+        """Advance the servo by dt seconds; present=False leaves the Present registers to a
+        later step (nothing reads them in between). (Reads the table by address: this runs
+        at every step of the bus, so it avoids the by-name register helpers.)"""
         if not self.powered or dt <= 0:
             return
         t = self.table
@@ -532,7 +544,23 @@ class AX12:
                     self._advance(dt / n)
         else:
             self._profile = self._pos   # limp: no load is modelled, the shaft stays put
-        self._update_present(start, dt)
+        if present:
+            self._update_present(start, dt)
+
+    def resting(self) -> bool:
+        """A step now would leave the shaft and its profile where they are: at the same
+        supply, the same Present registers too."""
+        if not self.powered:
+            return True
+        t = self.table
+        if not self._plain_motion or not (t[6] or t[7] or t[8] or t[9]):
+            return False                                   # wheel mode, or a subclass's own motion
+        if not (t[24] and (t[34] or t[35])):
+            return self._profile == self._pos              # limp
+        if self._profile != (t[30] | t[31] << 8):
+            return False
+        err = self._profile - self._pos
+        return err == 0 or (self.deadband and self.time_constant > 0 and abs(err) <= t[27 if err > 0 else 26])
 
     def _advance(self, h: float) -> None:
         t = self.table
@@ -656,6 +684,7 @@ class AX12Bus:
         self._servo_time = 0.0
         self.servos: list[AX12] = []
         self._tx: deque[tuple[float, int]] = deque()   # master bytes: (end of stop bit, byte)
+        self._due: deque[float] = deque()   # times of the master's bytes that may complete a packet
         self._tx_end = 0.0
         self._rx: list[tuple[float, int, int]] = []     # heap of (arrival, order, byte)
         self._order = itertools.count()
@@ -664,6 +693,7 @@ class AX12Bus:
 
     def add(self, servo: AX12) -> AX12:
         self.servos.append(servo)
+        servo.before_packet = self.sync
         return servo
 
     def servo(self, id_: int) -> AX12:
@@ -679,10 +709,15 @@ class AX12Bus:
     def write(self, data: bytes) -> float:
         """The master transmits data, starting now or when its previous bytes have left.
         Returns the time the last stop bit ends."""
+        data = bytes(data)
+        # One whole packet onto a quiet bus can make a servo act only at its last byte.
+        whole = not self._tx and all(not s._rx and s.one_packet(data) for s in self.servos)
         t = max(self.time, self._tx_end)
-        for byte in bytes(data):
+        for k, byte in enumerate(data, 1):
             t += self.byte_time
             self._tx.append((t, byte))
+            if k == len(data) or not whole:
+                self._due.append(t)
             if self.echo:
                 heapq.heappush(self._rx, (t, next(self._order), byte))
         self._tx_end = t
@@ -699,6 +734,20 @@ class AX12Bus:
         """How many received bytes have arrived by now."""
         return sum(1 for t, _, _ in self._rx if t <= self.time)
 
+    def next_due(self) -> float:
+        """When a byte of the master's in flight next may make a servo act (s; inf: none).
+        No new reply can arrive before then."""
+        return self._due[0] if self._due else math.inf
+
+    def take_arrivals(self, until: float) -> list[tuple[float, int]]:
+        """The received bytes that arrive by `until`, whenever that is: (arrival, byte), in
+        order. (For a master that holds them until their time.)"""
+        out = []
+        while self._rx and self._rx[0][0] <= until:
+            t, _, byte = heapq.heappop(self._rx)
+            out.append((t, byte))
+        return out
+
     @property
     def busy(self) -> bool:
         """Bytes still on their way (the master's, or replies not yet arrived)."""
@@ -707,18 +756,20 @@ class AX12Bus:
     def step(self, dt: float) -> None:
         self.run_until(self.time + dt)
 
-    def run_until(self, end: float) -> None:
-        """Advance to time `end`, delivering the master's bytes to the servos on the way."""
+    def run_until(self, end: float, present: bool = True) -> None:
+        """Advance to time `end`, delivering the master's bytes to the servos on the way
+        (present: as AX12.step's, for the motion up to `end`)."""
         while self._tx and self._tx[0][0] <= end:
             t, byte = self._tx.popleft()
-            self._move_to(t)
-            self.sync()
+            self.time = max(self.time, t)      # the motion is brought up to t once a packet is whole
+            while self._due and self._due[0] <= t:
+                self._due.popleft()
             for servo in self.servos:
                 if servo.hears(self.baud):
                     reply = servo.receive(byte, t)
                     if reply is not None:
                         self._send_reply(t + reply.delay, reply.data)
-        self._move_to(end)
+        self._move_to(end, present)
 
     def settle(self) -> float:
         """Advance until nothing is in flight; returns the time that took."""
@@ -746,19 +797,19 @@ class AX12Bus:
         for servo in self.servos:
             servo.voltage = volts
 
-    def _move_to(self, t: float) -> None:
+    def _move_to(self, t: float, present: bool = True) -> None:
         if t > self.time:
             self.time = t
             if not self.lazy:
-                self.sync()
+                self.sync(present)
 
-    def sync(self) -> None:
+    def sync(self, present: bool = True) -> None:
         """Bring the servos' motion up to the bus time."""
         if self.time > self._servo_time:
             dt = self.time - self._servo_time
             before = [servo._pos for servo in self.servos]
             for servo in self.servos:
-                servo.step(dt)
+                servo.step(dt, present)
             self._servo_time = self.time
             if self.supply is not None:
                 self._sag(before, dt)

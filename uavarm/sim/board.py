@@ -248,6 +248,7 @@ class SimBoard:
         self.record = record
         self._buf = self.ffi.new("uint8_t[]", 512)
         self.app = self.ffi.new("app_t *")
+        self._loop = self.ffi.new("host_loop_t *")
         self._clock()
         self.lib.app_init(self.app, self.ffi.addressof(self.hp, "port"))
         self.app.reset_cause = reset_cause_value("power_on")   # as after power-up
@@ -289,7 +290,66 @@ class SimBoard:
 
     def run_until_us(self, end_us: int) -> None:
         while self.now_us < end_us:
-            self.step(min(self.poll_us, end_us - self.now_us))
+            self._run_quiet_passes(end_us)
+            if self.now_us < end_us:
+                self.step(min(self.poll_us, end_us - self.now_us))
+        self.bus.run_until(self.time)
+
+    def _run_quiet_passes(self, end_us: int) -> None:
+        """The main-loop passes before end_us in which nothing reaches this side (no packet
+        on the servo bus whole, no IMU sample due), run in C (host_loop.h) up to the first
+        that leaves something to take. The servos' replies known by then wait in C for their
+        passes. A shaft trace gets its row for every pass."""
+        due = self.bus.next_due()
+        self._arrive(self.bus.take_arrivals(due))
+        stop = min(end_us, math.floor(self._next_sample), end_us if due == math.inf else math.floor(due * US) - 1)
+        if self.now_us + self.poll_us >= stop:
+            return
+        loop = self._loop
+        loop.now_us, loop.stop_us, loop.poll_us = self.now_us, stop, self.poll_us
+        loop.next_tick_us, loop.tick_us, loop.frozen_at_us = self._next_tick, self.tick_us, self._frozen_at
+        loop.start_us = self.start_us & 0xFFFFFFFF
+        loop.tick_interrupt, loop.clock_frozen, loop.servo_power = self.tick_interrupt, self.clock_frozen, self._power
+        start_us = self.now_us
+        passes = self.lib.host_loop_run(loop, self.hp, self.app)
+        if passes:
+            self.now_us, self._next_tick, self._frozen_at = loop.now_us, loop.next_tick_us, loop.frozen_at_us
+            if self.shaft_trace is not None:
+                self._trace_passes(start_us, passes)
+            self.bus.run_until(self.time)
+            self._collect()
+
+    def _trace_passes(self, start_us: int, passes: int) -> None:
+        """The shafts at each of the passes after start_us, as step() records them. Once a
+        pass finds every servo resting (and so the supply settled on them), they stay so
+        until the next packet: the passes up to the last are not stepped one by one."""
+        power, servos = self._power, self.bus.servos
+        settled = False
+        for k in range(1, passes + 1):
+            t_us = start_us + k * self.poll_us
+            if settled and k < passes:
+                self.shaft_trace.append((t_us, power, *shafts))
+                continue
+            resting = all(getattr(s, "resting", lambda: False)() for s in servos)
+            self.bus.run_until(t_us / US, present=k == passes)
+            shafts = tuple(s.position for s in servos)
+            self.shaft_trace.append((t_us, power, *shafts))
+            settled = resting
+
+    def _arrive(self, arrivals: list[tuple[float, int]]) -> None:
+        """Queue the servos' bytes for the passes at which step() would hand them over: the
+        first whose time is at or after theirs."""
+        if not arrivals:
+            return
+        passes = []
+        for t, _ in arrivals:
+            p = math.ceil(t * US)
+            p += 1 if not t <= p / US else -1 if t <= (p - 1) / US else 0
+            passes.append(p)
+        data = bytes(b for _, b in arrivals)
+        if self.lib.host_loop_arrive(self._loop, data, passes, len(data)) != len(data):
+            raise OverflowError("the servos' bytes on their way overflow the board's queue")
+        self.servo_rx_bytes += len(data)
 
     def step(self, dt_us: int) -> None:
         """Advance dt_us, then run one pass of the firmware's main loop."""
@@ -297,6 +357,8 @@ class SimBoard:
         self.bus.run_until(self.time)
         if self.shaft_trace is not None:
             self.shaft_trace.append((self.now_us, self._power, *(s.position for s in self.bus.servos)))
+        self._loop.now_us = self.now_us
+        self.lib.host_loop_deliver(self._loop, self.hp)          # (bytes queued by the quiet passes)
         rx = self.bus.read()
         if rx:
             self.servo_rx_bytes += len(rx)

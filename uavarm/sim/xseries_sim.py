@@ -257,6 +257,7 @@ class XServo:
         self.time_constant = time_constant
         self.firmware_version = firmware_version   # not given by the e-manual: a choice
         self.load_torque = 0.0
+        self.before_packet = None   # as AX12's: the bus brings the motion up to the packet
         self.powered = True
         self.table = bytearray(TABLE_SIZE)
         self._pos = float(position)
@@ -362,6 +363,12 @@ class XServo:
 
     # ------------------------------------------------------------- receiving
 
+    @staticmethod
+    def one_packet(data: bytes) -> bool:
+        """data is one whole packet as receive() parses it: from an empty buffer, a packet
+        is complete only at its last byte."""
+        return len(data) >= 10 and data[:4] == HEADER and len(data) == 7 + (data[5] | data[6] << 8)
+
     def receive(self, byte: int, t: float) -> Reply | None:
         """One byte from the wire, whose stop bit ended at time t (s)."""
         rx = self._rx
@@ -386,6 +393,8 @@ class XServo:
         rx.clear()
         if crc16(pkt[:-2]) != int.from_bytes(pkt[-2:], "little"):
             return None                            # corrupted: no answer
+        if self.before_packet is not None:
+            self.before_packet()
         return self._on_packet(pkt[4], pkt[7], unstuffed(pkt[8:-2]))
 
     def _on_packet(self, pid: int, inst: int, params: bytes) -> Reply | None:
@@ -512,8 +521,8 @@ class XServo:
 
     # --------------------------------------------------------------- motion
 
-    def step(self, dt: float) -> None:
-        """Advance the servo by dt seconds."""
+    def step(self, dt: float, present: bool = True) -> None:
+        """Advance the servo by dt seconds (present: as AX12.step's)."""
         if not self.powered or dt <= 0:
             return
         self._check_hardware()
@@ -524,7 +533,8 @@ class XServo:
                 self._advance(dt / n)
         else:
             self._profile, self._profile_speed = self._pos, 0.0    # limp or not modelled
-        self._update_present((self._pos - start) / dt)
+        if present:
+            self._update_present((self._pos - start) / dt)
 
     def profile_limits(self) -> tuple[float, float]:
         """(speed units/s, acceleration units/s^2) of the profile: Profile Velocity capped by

@@ -105,7 +105,7 @@ static bool tuck_route(const float from[3], const float goal[3], float via[MOTIO
 bool motion_go(motion_t *m, const float goal[3])
 {
     unsigned budget = MOTION_ROUTE_PIECES;
-    float via[MOTION_VIAS][3];
+    float via[MOTION_VIAS][3] = { { 0.0f } };   /* (copied whole into m below, used or not) */
     uint8_t vias = 0;
     if (!m->started) return false;
     if (!path_clear(m->q, goal, &budget)) {
