@@ -41,6 +41,7 @@
 #include <stdint.h>
 
 #include "dxl_protocol.h"
+#include "dxl_protocol2.h"
 #include "port.h"
 
 #ifdef __cplusplus
@@ -57,6 +58,12 @@ extern "C" {
 #define SBUS_VERIFY_LEN 39         /* and the first status reading (where the arm is) */
 #define SBUS_TX_MAX 32
 #define SBUS_RX_MAX 48
+#define SBUS2_STATUS_ADDR 64       /* Protocol 2.0: Torque Enable .. Present Temperature */
+#define SBUS2_STATUS_LEN 83
+#define SBUS2_VERIFY_ADDR 9        /* Return Delay Time .. Present Temperature */
+#define SBUS2_VERIFY_LEN 138
+#define SBUS2_SYNC_MAX 64          /* its SYNC_WRITE: 41 bytes, and room for byte stuffing */
+#define SBUS2_RX_MAX 192           /* a verify reading (149 bytes) and room for byte stuffing */
 
 typedef enum {
     SBUS_OFF = 0,
@@ -86,6 +93,10 @@ typedef struct {
                                       checksum, overload, instruction */
     uint16_t resets;               /* readings with its torque off while running (a brown-out) */
     uint16_t eeprom_writes;        /* EEPROM registers written at configurations */
+    /* Protocol 2.0 (X-series) only; 0 on the AX-12A */
+    uint8_t hardware_error;        /* Hardware Error Status of its latest reading */
+    int16_t present_current;       /* Present Current (XM430, 2.69 mA) or Present Load (XL430, 0.1 %) */
+    uint16_t hardware_error_bits[8];   /* readings with each Hardware Error Status bit set */
 } sbus_servo_t;
 
 typedef struct {
@@ -138,6 +149,12 @@ typedef struct {
     bool limp;                          /* torque off on purpose (sbus_limp): no SYNC_WRITE */
     bool limp_pending;                  /* its broadcast WRITE of Torque Enable 0 is still to go */
     uint16_t torque_limit;              /* Torque Limit as configured: full, or the bench's (sbus_power_limp) */
+    /* Protocol 2.0 (X-series) only (servo_bus2.c) */
+    uint8_t refit_steps;                /* the refit writes still to send to servo refit_servo (bits) */
+    uint8_t refit_servo;
+    uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position */
+    uint8_t rx2_buf[SBUS2_RX_MAX];
+    dxl2_parser_t parser2;
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */
