@@ -14,15 +14,17 @@ Oracles, none taken from the C under test:
 from __future__ import annotations
 
 import math
+import re
+import subprocess
 from pathlib import Path
 
 import pytest
 
-from conftest import once_per_run
+from conftest import once_per_run, require_arm_toolchain
 from sdk_capture import packet_handler, sdk_sync_write
 from test_dxl_protocol2 import crc16
 from test_servo_models import xm430_text
-from uavarm.build import firmware
+from uavarm.build import cbuild, firmware
 from uavarm.codegen import generate
 from uavarm.model import config
 from uavarm.sim.ax12_sim import AX12Bus
@@ -541,3 +543,26 @@ def test_power_limp_configures_with_the_torque_off(rig_parts):
     rig.on_tick = None
     rig.run(0.02)
     assert all(rig.servo(j).register("torque_enable") == 1 for j in range(3))
+
+
+# ---------------------------------------------------------------- the target
+
+def test_the_xm430_application_builds_for_the_cortex_m4(rig_parts, tmp_path):
+    """Every application source (servo_bus2.c the bus driver) and the XM430-W350 model's
+    generated code compile with the target's flags and warnings, with no double-precision
+    arithmetic; the sbus_* functions come from servo_bus2.c."""
+    require_arm_toolchain()
+    gen_dir = Path(rig_parts[0].path).parent / "generated"
+    objs = []
+    for src in firmware.app_sources(gen_dir):
+        obj = tmp_path / (src.stem + ".o")
+        proc = subprocess.run(["arm-none-eabi-gcc", *cbuild.TARGET_FLAGS, f"-I{gen_dir}", f"-I{firmware.APP / 'Inc'}",
+                               "-c", str(src), "-o", str(obj)], capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr
+        objs.append(obj)
+    undefined = subprocess.run(["arm-none-eabi-nm", "-u", *map(str, objs)], capture_output=True, text=True,
+                               check=True).stdout
+    assert not re.search(r"\b__aeabi_d\w+", undefined), "double-precision arithmetic on the target"
+    defined = subprocess.run(["arm-none-eabi-nm", "--defined-only", str(tmp_path / "servo_bus2.o")],
+                             capture_output=True, text=True, check=True).stdout
+    assert " T sbus_poll" in defined
