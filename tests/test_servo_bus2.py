@@ -42,8 +42,8 @@ EEPROM_END = 64                   # Torque Enable(64) opens the RAM area
 TABLE = {"return_delay_time": (9, 1), "drive_mode": (10, 1), "operating_mode": (11, 1),
          "temperature_limit": (31, 1), "max_voltage_limit": (32, 2), "min_voltage_limit": (34, 2),
          "velocity_limit": (44, 4), "max_position_limit": (48, 4), "min_position_limit": (52, 4),
-         "shutdown": (63, 1), "torque_enable": (64, 1), "status_return_level": (68, 1),
-         "hardware_error_status": (70, 1), "profile_acceleration": (108, 4), "profile_velocity": (112, 4),
+         "pwm_limit": (36, 2), "shutdown": (63, 1), "torque_enable": (64, 1), "status_return_level": (68, 1),
+         "hardware_error_status": (70, 1), "goal_pwm": (100, 2), "profile_acceleration": (108, 4), "profile_velocity": (112, 4),
          "goal_position": (116, 4), "present_current": (126, 2), "present_velocity": (128, 4),
          "present_position": (132, 4), "present_input_voltage": (144, 2), "present_temperature": (146, 1)}
 OVERHEATING = 0x04                # Hardware Error Status bit 2
@@ -82,12 +82,14 @@ def wanted(model, j: int) -> dict[str, int]:
     """What servo j must hold once configured: Return Delay Time as the model file says (2 us
     units), normal direction with a velocity-based profile (Drive Mode 0), Position Control
     Mode (3), the e-manual's factory safety values (Temperature Limit 80 deg C, voltage
-    9.5-16.0 V, Shutdown 52: overheating, electrical shock, overload), Velocity Limit at the
-    top of its range (1023: the model's speeds are checked against it), the joint limits as
-    Position Limits, Status Return Level 1 (reads only), no acceleration ramp, torque on."""
+    9.5-16.0 V, PWM Limit 885 = 100 %, Shutdown 52: overheating, electrical shock, overload),
+    Velocity Limit at the top of its range (1023: the model's speeds are checked against it),
+    the joint limits as Position Limits, Status Return Level 1 (reads only), Goal PWM at PWM
+    Limit (the full torque), no acceleration ramp, torque on."""
     lo, hi = unit_range(model, j)
     return {"return_delay_time": model.servo_return_delay_us // 2, "drive_mode": 0, "operating_mode": 3,
-            "temperature_limit": 80, "max_voltage_limit": 160, "min_voltage_limit": 95, "velocity_limit": 1023,
+            "temperature_limit": 80, "max_voltage_limit": 160, "min_voltage_limit": 95, "pwm_limit": 885,
+            "goal_pwm": 885, "velocity_limit": 1023,
             "max_position_limit": hi, "min_position_limit": lo, "shutdown": 52, "status_return_level": 1,
             "profile_acceleration": 0, "torque_enable": 1}
 
@@ -527,8 +529,13 @@ def test_limp_and_back(rig_parts):
     assert rig.sbus.resets == 0
 
 
-def test_power_limp_configures_with_the_torque_off(rig_parts):
+def test_power_limp_configures_with_the_torque_off_and_the_bench_torque(rig_parts):
+    """The bench: configured with Torque Enable 0 and Goal PWM at servo.bench_torque_limit of
+    PWM Limit 885 (Goal PWM caps the motor's output in Position Control Mode, e-manual); no
+    goal sent while limp; the torque back on with that cap, and sbus_full_torque() sets each
+    servo up again with the full Goal PWM, holding where it stands."""
     model = rig_parts[0]
+    bench = round(885 * model.servo_bench_torque_limit)
     rig = Rig(rig_parts, factory_servos(model))
     rig.power_on(limp=True)
     assert rig.run_until(lambda: rig.state == STATE["running"], 1.0)
@@ -536,13 +543,28 @@ def test_power_limp_configures_with_the_torque_off(rig_parts):
     rig.run(0.1)
     for j in range(3):
         want = {**wanted(model, j), "torque_enable": 0}
-        assert {k: rig.servo(j).register(k) for k in want} == want
+        got = {k: rig.servo(j).register(k) for k in want}
+        assert abs(got.pop("goal_pwm") - bench) <= 1 and want.pop("goal_pwm") == 885
+        assert got == want
         assert rig.counters(j).status_valid
     assert rig.sbus.limp and not rig.packets(inst=INST_SYNC_WRITE) and rig.sbus.resets == 0
-    rig.lib.sbus_limp(rig.sbus, False)
+    rig.servo(0).turn_by_hand(2100)
+    rig.run(0.05)
     rig.on_tick = None
-    rig.run(0.02)
+    rig.lib.sbus_limp(rig.sbus, False)
+    assert rig.run_until(lambda: not rig.sbus.refit and not rig.sbus.refitting, 0.05)
+    rig.run(0.001)
     assert all(rig.servo(j).register("torque_enable") == 1 for j in range(3))
+    assert all(abs(rig.servo(j).register("goal_pwm") - bench) <= 1 for j in range(3))
+    assert rig.servo(0).register("goal_position") == 2100
+    rig.lib.sbus_full_torque(rig.sbus)
+    assert rig.run_until(lambda: not rig.sbus.refit and not rig.sbus.refitting, 0.05)
+    rig.run(0.01)
+    for j in range(3):
+        s = rig.servo(j)
+        assert (s.register("goal_pwm"), s.register("torque_enable")) == (885, 1)
+    assert rig.servo(0).register("goal_position") == 2100 and abs(rig.servo(0).position - 2100) <= 1
+    assert rig.sbus.resets == 0
 
 
 # ---------------------------------------------------------------- the target

@@ -38,15 +38,15 @@
  * of servo_bus.c when the model's servo.model names one) go through the same states and calls:
  * - CONFIGURING reads Return Delay Time .. Present Temperature (9..146) and writes what differs:
  *   in the EEPROM Return Delay Time, Drive Mode 0 and Operating Mode 3 (position), Temperature
- *   Limit and Max/Min Voltage Limit at the model's factory values, Velocity Limit 1023 (the top
+ *   Limit, Max/Min Voltage Limit and PWM Limit at the model's factory values, Velocity Limit 1023 (the top
  *   of the model's speeds) with Max/Min Position Limit = the joint limits, Shutdown 0x34; the
  *   Torque Enable 0 first if it is on (the EEPROM is locked while it is on); in RAM Status Return
- *   Level 1, Profile Acceleration 0 (no ramp) with Profile Velocity at the park speed, and Torque
- *   Enable 1 (0: sbus_power_limp); then reads it all back.
+ *   Level 1, Goal PWM (the torque cap), Profile Acceleration 0 (no ramp) with Profile Velocity
+ *   at the park speed, and Torque Enable 1 (0: sbus_power_limp); then reads it all back.
  * - RUNNING: the SYNC_WRITE holds Profile Velocity (the speed, in 0.229 rpm) and Goal Position
  *   per servo; the status READ covers Torque Enable .. Present Temperature (64..146). A servo
- *   read with Torque Enable 0 and no hardware error has lost its RAM: it is refit (three
- *   WRITEs: Status Return Level, holding where it stands, the torque on). Torque Enable 0 with
+ *   read with Torque Enable 0 and no hardware error has lost its RAM: it is refit (four
+ *   WRITEs: Status Return Level, Goal PWM, holding where it stands, the torque on). Torque Enable 0 with
  *   Hardware Error Status set is the servo's own shutdown (it needs a REBOOT): not a reset.
  * - The status error byte is last_error (bit 7 the alert: Hardware Error Status is not 0), its
  *   error number counted in error_bits[number - 1]; Hardware Error Status is hardware_error,
@@ -54,8 +54,9 @@
  *   present_load keep the AX-12A's form (magnitude up to 1023, bit 10 for the negative
  *   direction); present_current is the register as read (XM430 Present Current in 2.69 mA,
  *   XL430 Present Load in 0.1 %); present_voltage is capped at 25.5 V.
- * - No torque cap on the bench yet: sbus_power_limp() records the bench's torque_limit, which
- *   no X-series register applies.
+ * - The torque cap is Goal PWM (torque_limit holds it): PWM Limit (885, the factory's) in
+ *   full, servo.bench_torque_limit of it on the bench (sbus_power_limp), in the configuration
+ *   and in every refit; PWM Limit is written with the safety registers.
  */
 #ifndef SERVO_BUS_H
 #define SERVO_BUS_H
@@ -147,7 +148,7 @@ typedef struct {
     /* configuration */
     uint8_t cfg_servo;
     uint8_t cfg_step;              /* read, write, verify */
-    uint8_t cfg_mask;              /* the writes still to send */
+    uint16_t cfg_mask;             /* the writes still to send */
     uint8_t cfg_attempt;
     uint8_t refit;                 /* servos found reset, to configure again (bits) */
     uint32_t resets;               /* servos found reset, in all */

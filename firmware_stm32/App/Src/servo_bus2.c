@@ -20,6 +20,7 @@ enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 #define X_TORQUE_ENABLE MODEL_DXL_TORQUE_ENABLE             /* the first RAM address */
 #define X_STATUS_RETURN_LEVEL MODEL_DXL_STATUS_RETURN_LEVEL
 #define X_HARDWARE_ERROR MODEL_DXL_HARDWARE_ERROR_STATUS
+#define X_GOAL_PWM MODEL_DXL_GOAL_PWM
 #define X_PROFILE_ACCELERATION MODEL_DXL_PROFILE_ACCELERATION   /* then Profile Velocity, Goal Position */
 #define X_PROFILE_VELOCITY MODEL_DXL_GOAL_SPEED
 #define X_GOAL_POSITION MODEL_DXL_GOAL_POSITION
@@ -27,6 +28,7 @@ enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
                              && MODEL_DXL_MAX_VOLTAGE_LIMIT == X_TEMPERATURE_LIMIT + 1u
                              && MODEL_DXL_MIN_VOLTAGE_LIMIT == X_TEMPERATURE_LIMIT + 3u
+                             && MODEL_DXL_PWM_LIMIT == X_TEMPERATURE_LIMIT + 5u
                              && MODEL_DXL_MAX_POSITION_LIMIT == X_VELOCITY_LIMIT + 4u
                              && MODEL_DXL_MIN_POSITION_LIMIT == X_VELOCITY_LIMIT + 8u
                              && X_PROFILE_VELOCITY == X_PROFILE_ACCELERATION + 4u
@@ -41,7 +43,7 @@ typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
 #define POSITION_CONTROL 3u           /* Operating Mode */
 #define DRIVE_MODE 0u                 /* normal direction, velocity-based profile */
 /* The safety registers at the factory's values (e-manual control tables): Temperature Limit,
- * the supply's limits (0.1 V), and Shutdown on overheating, electrical shock and overload
+ * the supply's limits (0.1 V), PWM Limit (100 %), and Shutdown on overheating, electrical shock and overload
  * (the servo drops its own torque and raises Hardware Error Status until rebooted). */
 #if defined(MODEL_DXL_XM430_W350)
 #define SAFE_TEMPERATURE_C 80u
@@ -55,6 +57,11 @@ typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
 #error "servo_bus2.c knows the safety limits of the XM430-W350 and XL430-W250 only"
 #endif
 #define SAFE_SHUTDOWN 0x34u
+#define PWM_LIMIT 885u
+/* The torque cap (Goal PWM): in full, or servo.bench_torque_limit of it on the bench (the
+ * model gives that share in 1023ths) */
+#define GOAL_PWM_FULL PWM_LIMIT
+#define GOAL_PWM_BENCH ((PWM_LIMIT * MODEL_SERVO_BENCH_TORQUE_LIMIT + 511u) / 1023u)
 /* Velocity Limit: Profile Velocity above it is refused, so it is the model's top speed */
 #define VELOCITY_LIMIT MODEL_DXL_SPEED_MAX
 /* The longest a servo may wait before answering: Return Delay Time 254 x 2 us. */
@@ -68,10 +75,11 @@ typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
 enum { CFG_READ, CFG_WRITE, CFG_VERIFY };   /* configuration steps of each servo */
 /* its writes, in order (bits of sbus_t.cfg_mask): the torque off if the EEPROM must be
  * written (it is locked while the torque is on), the EEPROM ones, then the RAM ones */
-enum { W_TORQUE_OFF, W_MODES, W_SAFETY, W_LIMITS, W_SHUTDOWN, W_SRL, W_PROFILE, W_TORQUE_ENABLE, CFG_WRITES };
+enum { W_TORQUE_OFF, W_MODES, W_SAFETY, W_LIMITS, W_SHUTDOWN, W_SRL, W_GOAL_PWM, W_PROFILE, W_TORQUE_ENABLE,
+       CFG_WRITES };
 #define EEPROM_WRITES ((1u << W_MODES) | (1u << W_SAFETY) | (1u << W_LIMITS) | (1u << W_SHUTDOWN))
 /* A servo found reset (its RAM back at the power-on values) is set up again by these. */
-enum { R_SRL, R_HOLD, R_TORQUE_ON, REFIT_WRITES };
+enum { R_SRL, R_GOAL_PWM, R_HOLD, R_TORQUE_ON, REFIT_WRITES };
 #define WRITE_MAX 12u
 
 /* Offsets in a status reading (Torque Enable .. Present Temperature) */
@@ -142,22 +150,24 @@ void sbus_power(sbus_t *bus, bool on)
     bus->port->servo_power(bus->port->ctx, on);
     forget_servo_state(bus);
     bus->cfg_servo = bus->cfg_step = bus->cfg_attempt = 0;
-    bus->torque_limit = 0;
+    bus->torque_limit = GOAL_PWM_FULL;
     enter(bus, on ? SBUS_BOOTING : SBUS_OFF);
 }
 
-/* (No torque cap on the bench yet: the X-series has no Torque Limit register; torque_limit
- * records the bench's for the application.) */
 void sbus_power_limp(sbus_t *bus)
 {
     sbus_power(bus, true);
     bus->limp = true;   /* configured with Torque Enable 0: nothing is commanded until sbus_limp(false) */
-    bus->torque_limit = MODEL_SERVO_BENCH_TORQUE_LIMIT;
+    bus->torque_limit = GOAL_PWM_BENCH;   /* a wrong calibration pushes gently */
 }
 
 void sbus_full_torque(sbus_t *bus)
 {
-    bus->torque_limit = 0;
+    if (bus->torque_limit == GOAL_PWM_FULL) return;
+    bus->torque_limit = GOAL_PWM_FULL;
+    if (bus->state != SBUS_RUNNING || bus->limp) return;   /* (written when configured, or with the torque) */
+    bus->command_pending = false;
+    bus->refit = (uint8_t)((1u << SBUS_SERVOS) - 1u);
 }
 
 void sbus_command(sbus_t *bus, const uint16_t goal[SBUS_SERVOS], const uint16_t speed[SBUS_SERVOS])
@@ -290,7 +300,7 @@ static void flush_rx(sbus_t *bus)
 
 /* --------------------------------------------------------------- configuration */
 
-static const uint8_t WRITE_LEN[CFG_WRITES] = { 1u, 3u, 5u, 12u, 1u, 1u, 8u, 1u };
+static const uint8_t WRITE_LEN[CFG_WRITES] = { 1u, 3u, 7u, 12u, 1u, 1u, 2u, 8u, 1u };
 
 /* Each write, its first register and its bytes for servo i (the torque off if the bus is limp). */
 static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[WRITE_MAX])
@@ -310,6 +320,8 @@ static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[
         data[2] = (uint8_t)(SAFE_VOLTAGE_HIGH >> 8);
         data[3] = (uint8_t)(SAFE_VOLTAGE_LOW & 0xFFu);
         data[4] = (uint8_t)(SAFE_VOLTAGE_LOW >> 8);
+        data[5] = (uint8_t)(PWM_LIMIT & 0xFFu);
+        data[6] = (uint8_t)(PWM_LIMIT >> 8);
         return X_TEMPERATURE_LIMIT;
     case W_LIMITS:   /* the joint limits in servo units: the servo itself refuses a goal outside */
         put32(data, VELOCITY_LIMIT);
@@ -322,6 +334,10 @@ static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[
     case W_SRL:
         data[0] = STATUS_RETURN_READS;
         return X_STATUS_RETURN_LEVEL;
+    case W_GOAL_PWM:
+        data[0] = (uint8_t)(bus->torque_limit & 0xFFu);
+        data[1] = (uint8_t)(bus->torque_limit >> 8);
+        return X_GOAL_PWM;
     case W_PROFILE:   /* no acceleration ramp (0: at once), the park speed until the first command */
         put32(data, 0u);
         put32(data + 4, MODEL_PARK_SPEED);
@@ -333,12 +349,13 @@ static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[
 }
 
 /* The writes whose registers differ, in a reading from Return Delay Time on (reply_params). */
-static uint8_t writes_needed(const sbus_t *bus, unsigned i)
+static uint16_t writes_needed(const sbus_t *bus, unsigned i)
 {
-    uint8_t mask = 0, data[WRITE_MAX];
+    uint16_t mask = 0;
+    uint8_t data[WRITE_MAX];
     for (unsigned w = W_MODES; w < CFG_WRITES; ++w) {
         const uint8_t addr = write_of(bus, w, i, data);
-        if (memcmp(bus->reply_params + (addr - SBUS2_VERIFY_ADDR), data, WRITE_LEN[w]) != 0) mask |= (uint8_t)(1u << w);
+        if (memcmp(bus->reply_params + (addr - SBUS2_VERIFY_ADDR), data, WRITE_LEN[w]) != 0) mask |= (uint16_t)(1u << w);
     }
     if ((mask & EEPROM_WRITES) && bus->reply_params[X_TORQUE_ENABLE - SBUS2_VERIFY_ADDR] != 0u) {
         mask |= 1u << W_TORQUE_OFF;
@@ -373,13 +390,13 @@ static void configure(sbus_t *bus)
     if (how == NOT_DONE) return;
     switch (bus->cfg_step) {
     case CFG_READ:
-        bus->cfg_mask = how == DONE_OK ? writes_needed(bus, i) : (uint8_t)((1u << CFG_WRITES) - 1u);
+        bus->cfg_mask = how == DONE_OK ? writes_needed(bus, i) : (uint16_t)((1u << CFG_WRITES) - 1u);
         bus->cfg_step = bus->cfg_mask ? CFG_WRITE : CFG_VERIFY;
         return;
     case CFG_WRITE: {
         const unsigned w = (unsigned)__builtin_ctz(bus->cfg_mask);
         if ((1u << w) & EEPROM_WRITES) s->eeprom_writes++;
-        bus->cfg_mask &= (uint8_t)(bus->cfg_mask - 1u);
+        bus->cfg_mask &= (uint16_t)(bus->cfg_mask - 1u);
         if (!bus->cfg_mask) bus->cfg_step = CFG_VERIFY;
         return;
     }
@@ -447,9 +464,9 @@ static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
     }
 }
 
-/* The refit's next write to servo refit_servo: Status Return Level 1, then holding where it
- * stands (no acceleration ramp, the park speed, Goal Position = Present Position), then
- * the torque on. */
+/* The refit's next write to servo refit_servo: Status Return Level 1, the torque cap as
+ * configured, holding where it stands (no acceleration ramp, the park speed, Goal Position =
+ * Present Position), then the torque on. */
 static size_t build_refit(sbus_t *bus)
 {
     const sbus_servo_t *s = &bus->servo[bus->refit_servo];
@@ -458,6 +475,10 @@ static size_t build_refit(sbus_t *bus)
     case R_SRL:
         data[0] = STATUS_RETURN_READS;
         return dxl2_build_write(bus->tx, sizeof bus->tx, s->id, X_STATUS_RETURN_LEVEL, data, 1u);
+    case R_GOAL_PWM:
+        data[0] = (uint8_t)(bus->torque_limit & 0xFFu);
+        data[1] = (uint8_t)(bus->torque_limit >> 8);
+        return dxl2_build_write(bus->tx, sizeof bus->tx, s->id, X_GOAL_PWM, data, 2u);
     case R_HOLD:
         put32(data, 0u);
         put32(data + 4, MODEL_PARK_SPEED);
