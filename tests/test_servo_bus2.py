@@ -529,6 +529,23 @@ def test_limp_and_back(rig_parts):
     assert rig.sbus.resets == 0
 
 
+def test_limp_during_a_refit_stops_it(rig_parts):
+    """sbus_limp(true) while a refit's writes are still going out: the refit stops there, so
+    no servo gets its torque back on after the broadcast torque off."""
+    rig = running_rig(rig_parts)
+    rig.on_tick = lambda r: r.lib.sbus_read(r.sbus)
+    rig.run(0.05)
+    rig.lib.sbus_limp(rig.sbus, True)
+    rig.run(0.03)
+    rig.on_tick = None
+    rig.lib.sbus_limp(rig.sbus, False)          # all three to be refit, one write at a time
+    assert rig.run_until(lambda: rig.sbus.refit_steps and rig.sbus.refit_servo == 1, 0.05)
+    rig.lib.sbus_limp(rig.sbus, True)
+    rig.run(0.05)
+    assert not rig.sbus.refitting and not rig.sbus.refit
+    assert [rig.servo(j).register("torque_enable") for j in range(3)] == [0, 0, 0]
+
+
 def test_power_limp_configures_with_the_torque_off_and_the_bench_torque(rig_parts):
     """The bench: configured with Torque Enable 0 and Goal PWM at servo.bench_torque_limit of
     PWM Limit 885 (Goal PWM caps the motor's output in Position Control Mode, e-manual); no
