@@ -48,6 +48,9 @@
  *   read with Torque Enable 0 and no hardware error has lost its RAM: it is refit (four
  *   WRITEs: Status Return Level, Goal PWM, holding where it stands, the torque on). Torque Enable 0 with
  *   Hardware Error Status set is the servo's own shutdown (it needs a REBOOT): not a reset.
+ * - Replies are matched and checked as above: read straight into a buffer while every byte
+ *   fits the expected status packet (header, ID, LEN, STATUS instruction, then its CRC and no
+ *   FF FF FD to unstuff), else through the resynchronising parser of dxl_protocol2.h.
  * - The status error byte is last_error (bit 7 the alert: Hardware Error Status is not 0), its
  *   error number counted in error_bits[number - 1]; Hardware Error Status is hardware_error,
  *   each of its bits counted per reading in hardware_error_bits. present_speed and
@@ -177,6 +180,7 @@ typedef struct {
     uint8_t refit_steps;                /* the refit writes still to send to servo refit_servo (bits) */
     uint8_t refit_servo;
     uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position */
+    uint8_t direct2[DXL2_STATUS_MIN_LEN + SBUS2_VERIFY_LEN];   /* the expected reply so far */
     uint8_t rx2_buf[SBUS2_RX_MAX];
     dxl2_parser_t parser2;
 } sbus_t;

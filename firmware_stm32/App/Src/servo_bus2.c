@@ -253,18 +253,78 @@ static bool parse_byte(sbus_t *bus, uint8_t byte)
     return false;
 }
 
-/* The reply so far, or the timeout. */
-static int receive(sbus_t *bus)
+/* Do the first n bytes held fit the expected reply's head, FF FF FD 00 ID LEN_L LEN_H 55? */
+static bool head_fits(const sbus_t *bus, unsigned n)
+{
+    const unsigned len = bus->expect_params + 4u;   /* instruction, error, parameters, CRC */
+    const uint8_t head[8] = { 0xFFu, 0xFFu, 0xFDu, 0x00u, bus->expect_id, (uint8_t)(len & 0xFFu), (uint8_t)(len >> 8),
+                              DXL2_INST_STATUS };
+    return memcmp(bus->direct2, head, n < sizeof head ? n : sizeof head) == 0;
+}
+
+/* All total bytes of the expected reply held: is its CRC right, with no FF FF FD from the
+ * instruction to the last parameter? (A servo stuffs one, which lengthens LEN: the parser
+ * judges that reply.) */
+static bool whole_fits(const sbus_t *bus, unsigned total)
+{
+    const uint8_t *d = bus->direct2;
+    if (dxl2_crc(0, d, total - 2u) != (uint16_t)(d[total - 2u] | d[total - 1u] << 8)) return false;
+    for (unsigned k = 9u; k + 3u <= total; ++k) {
+        if (d[k] == 0xFDu && d[k - 1u] == 0xFFu && d[k - 2u] == 0xFFu) return false;
+    }
+    return true;
+}
+
+/* The len bytes received for the request, which do not fit the expected reply, through the
+ * parser, as all that follows; true when they completed the reply. */
+static bool resync_direct(sbus_t *bus, unsigned len)
+{
+    bus->resync = true;
+    for (unsigned k = 0; k < len; ++k) {
+        if (parse_byte(bus, bus->direct2[k])) return true;
+    }
+    return false;
+}
+
+/* What arrived of the expected reply, read straight into bus->direct2; true when it completed
+ * it. At the first byte that does not fit, everything received for the request goes to the
+ * parser instead. (The parser costs hundreds of cycles a byte: the usual reply needs none.) */
+static bool receive_direct(sbus_t *bus)
+{
+    const unsigned total = DXL2_STATUS_MIN_LEN + bus->expect_params;
+    size_t n;
+    while ((n = bus->port->servo_read(bus->port->ctx, bus->direct2 + bus->direct_len, total - bus->direct_len)) > 0) {
+        const unsigned len = bus->direct_len + (unsigned)n;
+        bus->direct_len = (uint8_t)len;
+        if (!head_fits(bus, len) || (len == total && !whole_fits(bus, total))) return resync_direct(bus, len);
+        if (len == total) {
+            note_error_byte(bus->expect_servo, bus->direct2[8]);
+            bus->reply_params = bus->direct2 + 9;
+            return true;
+        }
+    }
+    return false;
+}
+
+/* What arrived since, through the parser; true when it completed the reply. */
+static bool receive_resync(sbus_t *bus)
 {
     uint8_t chunk[16];
     size_t n;
     while ((n = bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk)) > 0) {
         for (size_t i = 0; i < n; ++i) {
-            if (parse_byte(bus, chunk[i])) {   /* (bytes after the reply are dropped at the next request) */
-                bus->phase = PHASE_IDLE;
-                return DONE_OK;
-            }
+            if (parse_byte(bus, chunk[i])) return true;   /* (bytes after the reply are dropped at the next request) */
         }
+    }
+    return false;
+}
+
+/* The reply so far, or the timeout. */
+static int receive(sbus_t *bus)
+{
+    if ((!bus->resync && receive_direct(bus)) || (bus->resync && receive_resync(bus))) {
+        bus->phase = PHASE_IDLE;
+        return DONE_OK;
     }
     if (now_us(bus) - bus->phase_us > bus->timeout_us) {
         bus->phase = PHASE_IDLE;
@@ -295,7 +355,9 @@ static void flush_rx(sbus_t *bus)
     uint8_t chunk[16];
     while (bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk) > 0) {
     }
-    dxl2_parser_reset(&bus->parser2);
+    if (bus->resync) dxl2_parser_reset(&bus->parser2);   /* (only a resync feeds the parser) */
+    bus->direct_len = 0;
+    bus->resync = false;
 }
 
 /* --------------------------------------------------------------- configuration */
