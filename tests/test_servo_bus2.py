@@ -28,7 +28,7 @@ from uavarm.build import cbuild, firmware
 from uavarm.codegen import generate
 from uavarm.model import config
 from uavarm.sim.ax12_sim import AX12Bus
-from uavarm.sim.xseries_sim import XM430_W350, XServo, unstuffed
+from uavarm.sim.xseries_sim import XL430_W250, XM430_W350, XServo, unstuffed
 
 US = 1_000_000
 BAUD = 1_000_000
@@ -188,10 +188,10 @@ class Rig:
         return self.sbus.servo[j]
 
 
-def factory_servos(model, positions=(2048, 2048, 2048), **table):
-    """XM430-W350s as they leave the factory (return delay 500 us, Status Return Level 2),
+def factory_servos(model, positions=(2048, 2048, 2048), kind=XM430_W350, **table):
+    """X-series servos as they leave the factory (return delay 500 us, Status Return Level 2),
     but at the bus's baud and with the model file's ids."""
-    return [XServo(XM430_W350, s.id, position=p, table={"baud_rate": BAUD_REGISTER, **table})
+    return [XServo(kind, s.id, position=p, table={"baud_rate": BAUD_REGISTER, **table})
             for s, p in zip(model.servos, positions)]
 
 
@@ -615,6 +615,25 @@ def test_power_limp_configures_with_the_torque_off_and_the_bench_torque(rig_part
         assert (s.register("goal_pwm"), s.register("torque_enable")) == (885, 1)
     assert rig.servo(0).register("goal_position") == 2100 and abs(rig.servo(0).position - 2100) <= 1
     assert rig.sbus.resets == 0
+
+
+def test_an_xl430_build_sets_up_xl430s_with_their_own_safety_values(tmp_path_factory):
+    """From a model file naming the XL430-W250, the driver configures XL430-W250s with that
+    servo's factory safety values (e-manual: Temperature Limit 72 deg C, voltage 6.0-14.0 V),
+    the rest as for the XM430-W350, and runs."""
+    def make(folder):
+        (folder / "arm.toml").write_text(xm430_text("XL430-W250"))
+        assert generate.main(["--model", str(folder / "arm.toml"), "--out", str(folder / "generated")]) == 0
+        return str(folder)
+    folder = Path(once_per_run(tmp_path_factory, "xl430_firmware", make))
+    model = config.load(folder / "arm.toml")
+    parts = (model, *firmware.load(folder / "generated"))
+    rig = Rig(parts, factory_servos(model, kind=XL430_W250))
+    rig.power_on()
+    assert rig.run_until(lambda: rig.state == STATE["running"], 1.0), rig.state
+    for j in range(3):
+        want = {**wanted(model, j), "temperature_limit": 72, "max_voltage_limit": 140, "min_voltage_limit": 60}
+        assert {k: rig.servo(j).register(k) for k in want} == want
 
 
 # ---------------------------------------------------------------- the target
