@@ -95,6 +95,7 @@ def main() -> int:
     whole_tick(m)
     target_size()
     bus_traffic(m)
+    xseries_bus()
     motion.report(m)
     return 0
 
@@ -226,6 +227,34 @@ def bus_traffic(m, seconds=1.0):
     print(f"\nServo bus at {m.servo_baud} baud, engaged: {tx:.0f} bytes out + {rx:.0f} bytes back per tick "
           f"(SYNC_WRITE of 3 servos + one status READ), {wire:.0f} us of wire time per "
           f"{1e6 / m.sample_rate:.0f} us tick ({wire * m.sample_rate / 1e4:.0f} % of the bus).")
+
+
+# The model file as an XM430-W350 arm: the servo model, its travel, a baud it runs at, zeros at its centre.
+XM430_EDITS = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.range_deg": 359.912109375,
+               "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
+
+
+def xseries_bus(n=9):
+    """The X-series bus driver's work per command (bench/sbus2_bench.c), built from the model
+    file edited into an XM430-W350 arm."""
+    import tempfile
+
+    from uavarm.build import variants
+    from uavarm.codegen import generate
+    with tempfile.TemporaryDirectory(prefix="uavarm-xm430-") as tmp:
+        model_path, gen_dir = Path(tmp) / "arm.toml", Path(tmp) / "generated"
+        model_path.write_text(variants.edited_text(XM430_EDITS))
+        generate.write(generate.render(model_path), gen_dir)
+        sources = [str(firmware.APP / "Src" / f) for f in ("servo_bus2.c", "dxl_protocol2.c")]
+        build = m4.build(sources + [str(BENCH / "sbus2_bench.c")], ["bench_sbus2"],
+                         cflags=target.M4_CFLAGS + [f"-I{gen_dir}", f"-I{firmware.APP / 'Inc'}"])
+    idle = build.call("bench_sbus2", [m4.U32(n), m4.U32(0)], ret="int")
+    run = build.call("bench_sbus2", [m4.U32(n), m4.U32(1)], ret="int")
+    if not (idle.ret and run.ret):
+        raise SystemExit("X-series bus bench: a command went without its SYNC_WRITE or status reading")
+    print(f"\nX-series bus driver (servo_bus2.c, XM430-W350 model), per command: SYNC_WRITE built and sent, "
+          f"status READ sent, its 94-byte reply checked and taken: {(run.insns - idle.insns) / n:.0f} insns, "
+          f"{(run.cycles - idle.cycles) / n:.0f} est. cycles, {run.stack_bytes} bytes of stack.")
 
 
 if __name__ == "__main__":

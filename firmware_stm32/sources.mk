@@ -18,6 +18,7 @@ APP_SOURCES = \
     App/Src/llcp.c \
     App/Src/motion.c \
     App/Src/servo_bus.c \
+    App/Src/servo_bus2.c \
     App/Src/servo_track.c \
     App/Src/stabiliser.c
 

@@ -65,3 +65,11 @@ def test_the_main_loop_passes_measured_do_their_work(tick_build):
         assert without.ret == 1 and with_.ret == 1
         assert with_.cycles > without.cycles
     print(f"\nheartbeat: {with_.cycles - without.cycles} est. cycles")
+
+
+def test_the_xseries_bus_bench_takes_every_reading(capsys):
+    """bench/sbus2_bench.c on the emulated Cortex-M4F: every command sends its SYNC_WRITE and
+    takes its status reading (xseries_bus stops otherwise); no cycle figure is asserted."""
+    require_arm_toolchain()
+    bench.xseries_bus(n=2)
+    assert "est. cycles" in capsys.readouterr().out

@@ -186,8 +186,9 @@ def test_x_series_files_are_checked_against_the_x_series(tmp_path, text, key, wo
 
 
 def test_the_simulator_refuses_an_x_series_variant():
-    """The simulated board's servos and the bus driver are AX-12As: an X-series variant would
-    be simulated with the wrong servo, so it is refused before anything is generated."""
+    """The simulated board's servos are AX-12As (the firmware's bus driver speaks to X-series
+    servos too): an X-series variant would be simulated with the wrong servo, so it is refused
+    before anything is generated."""
     changes = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.range_deg": 359.912109375,
                "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
     assert config.parse(variants.edited_text(changes).encode(), Path("arm.toml")).servo_model.name == "XM430-W350"
@@ -262,14 +263,24 @@ def test_committed_defines_are_the_ax12a(model):
 
 
 @pytest.mark.parametrize("which", ["committed", "XM430-W350"])
-def test_the_bus_driver_builds_only_for_the_servo_it_speaks_to(which, xm430_generated):
-    """servo_bus.c speaks Protocol 1.0: compiled against an X-series model's generated code it
-    stops the build with a message naming the key, against the committed AX-12A it compiles."""
+def test_the_bus_driver_of_the_servos_protocol_is_built(which, xm430_generated, tmp_path):
+    """servo_bus.c speaks Protocol 1.0 (AX-12A), servo_bus2.c Protocol 2.0 (X-series): both
+    are in the firmware's sources, and the model's servo decides which one defines the
+    sbus_* functions; the other compiles to nothing."""
     generated = ROOT / "generated" if which == "committed" else xm430_generated
     app = ROOT / "firmware_stm32" / "App"
-    run = subprocess.run(["cc", "-std=c99", "-fsyntax-only", "-I", str(generated), "-I", str(app / "Inc"),
-                          str(app / "Src" / "servo_bus.c")], capture_output=True, text=True)
-    if which == "committed":
+    defined = {}
+    for name in ("servo_bus.c", "servo_bus2.c"):
+        obj = tmp_path / (name + ".o")
+        run = subprocess.run(["cc", "-std=c99", "-Wall", "-Wextra", "-Werror", "-c", "-o", str(obj),
+                              "-I", str(generated), "-I", str(app / "Inc"), str(app / "Src" / name)],
+                             capture_output=True, text=True)
         assert run.returncode == 0, run.stderr
-    else:
-        assert run.returncode != 0 and "servo.model names an X-series servo (Dynamixel Protocol 2)" in run.stderr
+        symbols = subprocess.run(["nm", "--defined-only", "-g", str(obj)], capture_output=True, text=True,
+                                 check=True).stdout.split()
+        defined[name] = {s for s in symbols if s.startswith("sbus_")}
+    api = {"sbus_init", "sbus_power", "sbus_power_limp", "sbus_full_torque", "sbus_command", "sbus_limp",
+           "sbus_read", "sbus_poll", "sbus_tick_bus_time_us"}
+    speaks = "servo_bus.c" if which == "committed" else "servo_bus2.c"
+    other = "servo_bus2.c" if which == "committed" else "servo_bus.c"
+    assert defined[speaks] == api and defined[other] == set()

@@ -13,7 +13,7 @@ APP = FIRMWARE / "App"
 SOURCES_MK = FIRMWARE / "sources.mk"
 HOST_PORT = Path(__file__).resolve().parent / "csrc"
 # cffi sees the headers in this order: every type before its first use.
-APP_HEADERS = ("llcp.h", "dxl_protocol.h", "port.h", "servo_bus.h", "imu_mpu6050.h",
+APP_HEADERS = ("llcp.h", "dxl_protocol.h", "dxl_protocol2.h", "port.h", "servo_bus.h", "imu_mpu6050.h",
                "stabiliser.h", "servo_track.h", "motion.h", "app.h")
 
 

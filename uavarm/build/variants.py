@@ -165,8 +165,8 @@ def model_of(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> c
     except config.ModelError as exc:
         raise VariantError(str(exc)) from None
     if model.servo_model.name != servo_models.DEFAULT:
-        raise VariantError(f"{base}: servo.model: the simulated board's servos and the firmware's bus driver "
-                           f"are {servo_models.DEFAULT}s; a {model.servo_model.name} variant cannot be simulated")
+        raise VariantError(f"{base}: servo.model: the simulated board's servos (unlike the firmware's bus "
+                           f"driver) are {servo_models.DEFAULT}s only; a {model.servo_model.name} variant cannot be simulated")
     return model
 
 

@@ -23,6 +23,8 @@ Where the e-manual is silent this simulator chooses, and says so:
   is set in Shutdown (default 52: overheating, electrical shock, overload; not the voltage).
   It then clears Torque Enable; writing Torque Enable = 1 gives the Result Fail error until
   REBOOT, which clears the status (a condition that lasts is found again at the next step).
+- Goal PWM(100) starts at PWM Limit(36) and takes -885..885 (the e-manual bounds it by PWM
+  Limit); it is kept, but its cap on the motor's output is not modelled.
 - Only Position Control Mode (3) with a velocity-based profile moves the shaft; in the other
   modes the shaft holds. A new goal ahead keeps the profile's speed (velocity override); one
   behind it starts the profile again from rest. The shaft follows the profile through the
@@ -73,6 +75,7 @@ RPM2_PER_ACCELERATION_UNIT = 214.577   # Profile Acceleration, rev/min^2
 AMPS_PER_CURRENT_UNIT = 0.00269        # Present Current (XM430)
 BAUD_RATES = (9_600, 57_600, 115_200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
 POSITION_CONTROL = 3
+PWM_MAX = 885                          # PWM Limit's range and factory value (100 %)
 
 
 def units_per_s(rpm: float) -> float:
@@ -121,6 +124,7 @@ def registers(model: Model) -> tuple[Register, ...]:
         Register(31, 1, "temperature_limit", (0, 100)),
         Register(32, 2, "max_voltage_limit", volts),
         Register(34, 2, "min_voltage_limit", volts),
+        Register(36, 2, "pwm_limit", (0, PWM_MAX)),
         Register(44, 4, "velocity_limit", (0, 1023)),
         Register(48, 4, "max_position_limit", (0, 4095)),
         Register(52, 4, "min_position_limit", (0, 4095)),
@@ -130,6 +134,7 @@ def registers(model: Model) -> tuple[Register, ...]:
         Register(68, 1, "status_return_level", (0, 2)),
         Register(69, 1, "registered_instruction", None),
         Register(70, 1, "hardware_error_status", None),
+        Register(100, 2, "goal_pwm", (-PWM_MAX, PWM_MAX), True),
         Register(108, 4, "profile_acceleration", (0, 32767)),
         Register(112, 4, "profile_velocity", (0, 32767)),
         Register(116, 4, "goal_position", (0, 4095)),
@@ -149,7 +154,7 @@ def defaults(model: Model) -> dict[str, int]:
         "drive_mode": 0, "operating_mode": POSITION_CONTROL, "moving_threshold": 10,
         "temperature_limit": model.temperature_limit,
         "max_voltage_limit": model.max_voltage_limit, "min_voltage_limit": model.min_voltage_limit,
-        "velocity_limit": model.velocity_limit, "max_position_limit": 4095,
+        "pwm_limit": PWM_MAX, "velocity_limit": model.velocity_limit, "max_position_limit": 4095,
         "min_position_limit": 0, "shutdown": HW_OVERHEATING | HW_ELECTRICAL_SHOCK | HW_OVERLOAD,
         "status_return_level": 2,
     }
@@ -319,6 +324,7 @@ class XServo:
         self.powered = True
         self.table[EEPROM_END:] = bytes(TABLE_SIZE - EEPROM_END)
         self.set_register("status_return_level", 2)
+        self.set_register("goal_pwm", self.register("pwm_limit"))
         self._profile, self._profile_speed = self._pos, 0.0
         self.set_register("goal_position", self._quantised())
         self._rx.clear()

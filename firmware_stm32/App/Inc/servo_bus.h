@@ -33,6 +33,33 @@
  * usual case, the expected status packet alone on the wire, is read straight into a buffer
  * and checked there; once a byte does not fit it, everything received for the request goes
  * through the resynchronising parser of dxl_protocol.h instead.
+ *
+ * X-series servos (XL430-W250, XM430-W350: Dynamixel Protocol 2.0, servo_bus2.c, built instead
+ * of servo_bus.c when the model's servo.model names one) go through the same states and calls:
+ * - CONFIGURING reads Return Delay Time .. Present Temperature (9..146) and writes what differs:
+ *   in the EEPROM Return Delay Time, Drive Mode 0 and Operating Mode 3 (position), Temperature
+ *   Limit, Max/Min Voltage Limit and PWM Limit at the model's factory values, Velocity Limit 1023 (the top
+ *   of the model's speeds) with Max/Min Position Limit = the joint limits, Shutdown 0x34; the
+ *   Torque Enable 0 first if it is on (the EEPROM is locked while it is on); in RAM Status Return
+ *   Level 1, Goal PWM (the torque cap), Profile Acceleration 0 (no ramp) with Profile Velocity
+ *   at the park speed, and Torque Enable 1 (0: sbus_power_limp); then reads it all back.
+ * - RUNNING: the SYNC_WRITE holds Profile Velocity (the speed, in 0.229 rpm) and Goal Position
+ *   per servo; the status READ covers Torque Enable .. Present Temperature (64..146). A servo
+ *   read with Torque Enable 0 and no hardware error has lost its RAM: it is refit (four
+ *   WRITEs: Status Return Level, Goal PWM, holding where it stands, the torque on). Torque Enable 0 with
+ *   Hardware Error Status set is the servo's own shutdown (it needs a REBOOT): not a reset.
+ * - Replies are matched and checked as above: read straight into a buffer while every byte
+ *   fits the expected status packet (header, ID, LEN, STATUS instruction, then its CRC and no
+ *   FF FF FD to unstuff), else through the resynchronising parser of dxl_protocol2.h.
+ * - The status error byte is last_error (bit 7 the alert: Hardware Error Status is not 0), its
+ *   error number counted in error_bits[number - 1]; Hardware Error Status is hardware_error,
+ *   each of its bits counted per reading in hardware_error_bits. present_speed and
+ *   present_load keep the AX-12A's form (magnitude up to 1023, bit 10 for the negative
+ *   direction); present_current is the register as read (XM430 Present Current in 2.69 mA,
+ *   XL430 Present Load in 0.1 %); present_voltage is capped at 25.5 V.
+ * - The torque cap is Goal PWM (torque_limit holds it): PWM Limit (885, the factory's) in
+ *   full, servo.bench_torque_limit of it on the bench (sbus_power_limp), in the configuration
+ *   and in every refit; PWM Limit is written with the safety registers.
  */
 #ifndef SERVO_BUS_H
 #define SERVO_BUS_H
@@ -41,6 +68,7 @@
 #include <stdint.h>
 
 #include "dxl_protocol.h"
+#include "dxl_protocol2.h"
 #include "port.h"
 
 #ifdef __cplusplus
@@ -57,6 +85,12 @@ extern "C" {
 #define SBUS_VERIFY_LEN 39         /* and the first status reading (where the arm is) */
 #define SBUS_TX_MAX 32
 #define SBUS_RX_MAX 48
+#define SBUS2_STATUS_ADDR 64       /* Protocol 2.0: Torque Enable .. Present Temperature */
+#define SBUS2_STATUS_LEN 83
+#define SBUS2_VERIFY_ADDR 9        /* Return Delay Time .. Present Temperature */
+#define SBUS2_VERIFY_LEN 138
+#define SBUS2_SYNC_MAX 64          /* its SYNC_WRITE: 41 bytes, and room for byte stuffing */
+#define SBUS2_RX_MAX 192           /* a verify reading (149 bytes) and room for byte stuffing */
 
 typedef enum {
     SBUS_OFF = 0,
@@ -86,6 +120,10 @@ typedef struct {
                                       checksum, overload, instruction */
     uint16_t resets;               /* readings with its torque off while running (a brown-out) */
     uint16_t eeprom_writes;        /* EEPROM registers written at configurations */
+    /* Protocol 2.0 (X-series) only; 0 on the AX-12A */
+    uint8_t hardware_error;        /* Hardware Error Status of its latest reading */
+    int16_t present_current;       /* Present Current (XM430, 2.69 mA) or Present Load (XL430, 0.1 %) */
+    uint16_t hardware_error_bits[8];   /* readings with each Hardware Error Status bit set */
 } sbus_servo_t;
 
 typedef struct {
@@ -113,7 +151,7 @@ typedef struct {
     /* configuration */
     uint8_t cfg_servo;
     uint8_t cfg_step;              /* read, write, verify */
-    uint8_t cfg_mask;              /* the writes still to send */
+    uint16_t cfg_mask;             /* the writes still to send */
     uint8_t cfg_attempt;
     uint8_t refit;                 /* servos found reset, to configure again (bits) */
     uint32_t resets;               /* servos found reset, in all */
@@ -138,6 +176,13 @@ typedef struct {
     bool limp;                          /* torque off on purpose (sbus_limp): no SYNC_WRITE */
     bool limp_pending;                  /* its broadcast WRITE of Torque Enable 0 is still to go */
     uint16_t torque_limit;              /* Torque Limit as configured: full, or the bench's (sbus_power_limp) */
+    /* Protocol 2.0 (X-series) only (servo_bus2.c) */
+    uint8_t refit_steps;                /* the refit writes still to send to servo refit_servo (bits) */
+    uint8_t refit_servo;
+    uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position */
+    uint8_t direct2[DXL2_STATUS_MIN_LEN + SBUS2_VERIFY_LEN];   /* the expected reply so far */
+    uint8_t rx2_buf[SBUS2_RX_MAX];
+    dxl2_parser_t parser2;
 } sbus_t;
 
 /* ids: the servo ids, one per joint; baud: bus speed in bit/s. */

@@ -1,10 +1,10 @@
-/* AX-12A servo bus state machine; see servo_bus.h. */
+/* AX-12A (Dynamixel Protocol 1.0) servo bus state machine; see servo_bus.h. */
 #include "servo_bus.h"
 
 #include <string.h>
 
 #include "model_params.h"
-
+#if MODEL_DXL_PROTOCOL == 1u   /* (Protocol 2.0, the X-series: servo_bus2.c) */
 enum { PHASE_IDLE, PHASE_SENDING, PHASE_AWAIT };
 enum { REPLY_NONE, REPLY_OPTIONAL, REPLY_REQUIRED };
 enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
@@ -595,8 +595,4 @@ void sbus_poll(sbus_t *bus)
     }
 }
 
-/* This bus driver speaks Protocol 1.0 to AX-12A servos: a model file naming another servo
- * (servo.model) stops the build here rather than making firmware its servos cannot hear. */
-#if MODEL_DXL_PROTOCOL != 1u
-#error "servo.model names an X-series servo (Dynamixel Protocol 2): this firmware's bus driver speaks Protocol 1 to AX-12A servos only"
-#endif
+#endif /* MODEL_DXL_PROTOCOL == 1u */
