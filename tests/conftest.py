@@ -1,5 +1,6 @@
 import json
 import os
+import random
 import shutil
 import signal
 import socket
@@ -178,9 +179,23 @@ def wait_simulated(sitl, seconds: float, until=lambda: False) -> bool:
 
 
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+    """A TCP port free now, chosen below the kernel's ephemeral range: a port the kernel hands
+    out (bind to port 0, a connection out) could be taken by another process between this
+    check and its user's bind, as a roscore once found."""
+    try:
+        low = int(Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()[0])
+    except (OSError, ValueError, IndexError):
+        low = 32768
+    pick = random.SystemRandom()
+    for _ in range(200):
+        port = pick.randrange(10000, max(low, 10001))
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+            return port
+    raise RuntimeError(f"no free TCP port between 10000 and {low}")
 
 
 def stop_group(proc: subprocess.Popen, timeout: float = 10.0) -> None:
