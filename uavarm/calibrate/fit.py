@@ -158,10 +158,7 @@ def turned(turn: Turn, unmix: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:
     v_after): the rates are unmix (reading - offset), each held until the next sample (a
     turn starts and ends still)."""
     rate = np.radians(turn.gyro_dps - offset_dps) @ unmix.T
-    R = np.eye(3)
-    for k, dt in enumerate(turn.dt):
-        R = R @ rotation.from_vector(rate[k] * dt)
-    return R
+    return rotation.product(rotation.from_vectors(rate[:len(turn.dt)] * turn.dt[:, None]))
 
 
 def _up_misfit(turns: list[Turn], unmix: np.ndarray, offset_dps: np.ndarray) -> np.ndarray:

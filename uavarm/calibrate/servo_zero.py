@@ -137,10 +137,14 @@ def unsafe_on_route(m: config.Model, window_deg: float = ROUTE_SAFE_DEG) -> str 
     to window_deg and any direction the wrong way round; None if it is. Each path is taken a
     degree at a time, each step's box of joint errors (window_deg and the half degree to the
     next step) bounded by pose_tolerance's interval arithmetic: a conservative verdict."""
+    known = {}      # a box met again (a joint at 0 either way, a path walked back) is not bounded again
     for a, b in zip(ROUTE, ROUTE[1:]):
         for q in np.linspace(a, b, round(max(abs(np.subtract(b, a)))) + 1):
             for ways in itertools.product((1, -1), repeat=3):
-                c = pose_tolerance.least(m, tuple(q * ways), window_deg + 0.5)
+                box = tuple(float(v) for v in q * ways)
+                if box not in known:
+                    known[box] = pose_tolerance.least(m, box, window_deg + 0.5)
+                c = known[box]
                 if not c.clear:
                     return (f"on the way from {list(a)} to {list(b)} deg, at {[round(float(v), 1) for v in q]} deg "
                             f"with the directions {ways} and the joints off by {list(c.offsets_deg)} deg, "

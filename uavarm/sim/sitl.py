@@ -45,6 +45,11 @@ from ..model import config
 
 # A simulated second is run in slices no longer than this, so input is never late by more.
 SLICE_S = 0.002
+# Ahead of the wall clock, the board waits up to this long (s) for input before it runs on:
+# its output is never later than that (a USB full-speed frame is 1 ms). Behind by no more
+# than AT_ONCE_S, it catches up at once; further behind, at CATCH_UP.
+WAIT_S = 0.002
+AT_ONCE_S = 0.005
 # bytes of output the SITL holds for a reader that is behind (a busy machine), about 14 s of
 # heartbeats and a stream at twice real time; beyond, the oldest are dropped
 OUTPUT_KEPT = 256 * 1024
@@ -371,7 +376,8 @@ class Sitl:
             while not self._stop.is_set():
                 wall = time.monotonic()
                 target_us = round((wall - start) * self.speed * 1e6)
-                pace_us = self.board.now_us + round((wall - last) * self.speed * CATCH_UP * 1e6)
+                pace_us = target_us if target_us - self.board.now_us <= round(AT_ONCE_S * self.speed * 1e6) \
+                    else self.board.now_us + round((wall - last) * self.speed * CATCH_UP * 1e6)
                 last = wall
                 while self._resets:
                     self.board.reset(*self._resets.popleft())
@@ -387,7 +393,7 @@ class Sitl:
                 self._write_output()
                 self._watch_lag(target_us - self.board.now_us)
                 if self.board.now_us >= target_us:
-                    time.sleep(0.0005)   # ahead of the wall clock: wait for it
+                    select.select([self._master], [], [], WAIT_S)   # ahead of the wall clock: wait
         finally:
             while self._commands:
                 self._commands.popleft()[1].cancel()
