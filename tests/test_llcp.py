@@ -193,6 +193,35 @@ def test_python_decoder_is_independent_of_chunking(parts, data):
     assert got == [p for _, p in parts]
 
 
+# pieces of a stream rich in what ends or breaks a frame: starts, non-hex characters, frames of
+# length 0 and of other lengths than the id expects, bad checksums, cut frames
+pieces = st.one_of(payloads.map(ref_frame), st.binary(max_size=6), st.sampled_from([b"b", b"b00", b"b0", b"\n"]),
+                   payloads.map(lambda p: ref_frame(p)[:-1] + b"0"), st.text("0123456789ABCDEFb", max_size=8).map(str.encode),
+                   st.tuples(payloads, st.integers(0, 600)).map(lambda t: ref_frame(t[0])[:t[1]]))
+
+
+@SETTINGS
+@given(st.lists(pieces, max_size=12), st.data())
+def test_python_decoders_feed_is_feed_byte_at_a_time(parts, data):
+    """feed() takes a run of characters at a time: the same frames and counters as feeding each
+    byte, for any stream, cut anywhere, with gaps that drop partial frames."""
+    stream = b"".join(parts)
+    cuts = sorted(data.draw(st.lists(st.integers(0, len(stream)), max_size=8)))
+    times = sorted(data.draw(st.lists(st.sampled_from([0.0, 0.05, 0.2, 0.3, 1.0]), min_size=len(cuts) + 1,
+                                      max_size=len(cuts) + 1)))
+    expected = lambda i: {0x2A: 3, 0x10: 1}.get(i, -1) if i < 0x80 else None
+    bulk, bytewise = (pyllcp.Decoder(gap=0.1, expected_len=expected) for _ in range(2))
+    got, want = [], []
+    for (a, b), now in zip(zip([0] + cuts, cuts + [len(stream)]), times):
+        got += bulk.feed(stream[a:b], now)
+        for byte in stream[a:b]:
+            if bytewise.feed_byte(byte, now) is pyllcp.Result.FRAME:
+                want.append(bytewise.payload)
+    assert got == want
+    assert [getattr(bulk, k) for k in COUNTERS] == [getattr(bytewise, k) for k in COUNTERS]
+    assert bulk._chars == bytewise._chars          # and the same frame part way
+
+
 # ---------------------------------------------------------------- corrupted frames
 
 SENTINEL = b"\x2a\x00\x99"

@@ -18,6 +18,7 @@ match the one expected for the message id.
 from __future__ import annotations
 
 import enum
+import re
 import time
 from typing import Callable, Optional
 
@@ -28,6 +29,7 @@ TX_MAX_PAYLOAD = 127
 
 _HEX = "0123456789ABCDEF"
 _START = ord("b")
+_HEX_RUN = re.compile(rb"[0-9A-F]*")
 
 
 def frame_size(n: int) -> int:
@@ -91,10 +93,39 @@ class Decoder:
         """Feeds bytes that arrived together at time now; returns the completed payloads."""
         if now is None:
             now = time.monotonic()
-        frames = []
-        for byte in bytes(data):
-            if self.feed_byte(byte, now) is Result.FRAME:
-                frames.append(self.payload)
+        data = bytes(data)
+        if not data:
+            return []
+        self.poll(now)            # (the bytes after the first arrive no later: no gap among them)
+        self._last = now
+        frames, i = [], 0
+        while i < len(data):      # feed_byte's rules, a run of characters at a time
+            chars = self._chars
+            if chars is None:     # junk up to the next start
+                i = data.find(b"b", i)
+                if i < 0:
+                    break
+                self._chars, i = bytearray(b"b"), i + 1
+                continue
+            need = (3 if len(chars) < 3 else frame_size(int(chars[1:3], 16))) - len(chars)
+            run = _HEX_RUN.match(data, i, i + need).end() - i
+            chars += data[i:i + run]
+            i += run
+            if run == need:
+                if len(chars) == 3 and int(chars[1:3], 16) == 0:
+                    self._chars = None            # length 0 is ignored
+                elif len(chars) > 3:
+                    self._chars = None
+                    if self._complete(chars, int(chars[1:3], 16)) is Result.FRAME:
+                        frames.append(self.payload)
+            elif i < len(data):   # a character that is not a digit
+                if data[i] == _START:
+                    self.restarts += 1
+                    self._chars = bytearray(b"b")
+                else:
+                    self._chars = None
+                    self.hex_errors += 1
+                i += 1
         return frames
 
     def poll(self, now: Optional[float] = None) -> Result:
