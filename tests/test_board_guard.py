@@ -152,6 +152,32 @@ def test_a_fault_handler_records_its_exception(guard):
     assert fault_vector_name(start(lib, IWDGRST | PINRST)[1]) == "HardFault"
 
 
+def test_a_fault_before_the_start_still_ends_in_the_watchdogs_reset(guard):
+    """A fault in the start-up before board_guard_start (the clock set-up, say) starts the
+    watchdog itself with its 250 ms, so the halt ends in a reset, and the next start names
+    the fault."""
+    lib = guard[1]
+    lib.fake_reset()
+    lib.fake_guard_reset()
+    lib.fake_guard_set(b"ICSR", 3)              # HardFault active
+    lib.board_fault()
+    timeout = 4 * 2 ** lib.fake_guard_get(b"PR") * (lib.fake_guard_get(b"RLR") + 1) / LSI_HZ
+    assert timeout == pytest.approx(0.250) and lib.fake_guard_get(b"KR") == 0xAAAA
+    assert fault_vector_name(start(lib, IWDGRST | PINRST)[1]) == "HardFault"
+
+
+@pytest.mark.parametrize("exception, reported", [(255, 255), (256, 0), (511, 0)])
+def test_a_record_is_reported_only_if_its_exception_fits_the_heartbeats_byte(guard, exception, reported):
+    """ICSR.VECTACTIVE is 9 bits; the heartbeat names the last fault in one byte. A record
+    whose number does not fit is not this chip's (it has 102 vectors): nothing is reported
+    rather than its low byte."""
+    lib = guard[1]
+    start(lib, PINRST)
+    lib.fake_guard_set(b"ICSR", exception)
+    lib.board_fault()
+    assert start(lib, IWDGRST | PINRST) == (CAUSE["watchdog"], reported)
+
+
 @pytest.mark.parametrize("flags, cause", [(PORRST | BORRST | PINRST, "power_on"), (BORRST | PINRST, "brown_out")],
                          ids=["power_on", "brown_out"])
 def test_a_record_left_in_ram_is_not_this_runs_fault_after_power_was_lost(guard, flags, cause):
