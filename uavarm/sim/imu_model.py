@@ -219,6 +219,27 @@ class Mpu6050Sensor:
         bg, ag = butterworth2(gyro_bw, INTERNAL_RATE)
         self._b = np.array([np.r_[[ba[i]] * 3, [bg[i]] * 3] for i in range(3)])
         self._a = np.array([np.r_[[aa[i]] * 3, [ag[i]] * 3] for i in range(3)])
+        self._blocks = {}
+
+    def _block(self, n: int):
+        """(P, W) for n samples: the filter's state after them is P z + sum_i W[i] x_i, from
+        state z (per axis: (6, 2), z0 and z1 of the transposed direct form II) and inputs x_i.
+        The same recursion as a loop over the samples, in a few array operations."""
+        if n not in self._blocks:
+            b, a = self._b, self._a
+            step = np.zeros((6, 2, 2))
+            step[:, 0, 0], step[:, 0, 1], step[:, 1, 0] = -a[1], 1.0, -a[2]
+            gain = np.stack([b[1] - a[1] * b[0], b[2] - a[2] * b[0]], axis=1)[..., None]
+            powers = [np.broadcast_to(np.eye(2), (6, 2, 2))]
+            for _ in range(n):
+                powers.append(step @ powers[-1])
+            weights = np.array([(powers[n - 1 - i] @ gain)[..., 0] for i in range(n)]).reshape(n, 6, 2)
+            self._blocks[n] = (powers[n], weights)
+        return self._blocks[n]
+
+    def _state_after(self, z: np.ndarray, x: np.ndarray) -> np.ndarray:
+        P, W = self._block(len(x))
+        return (P @ z[..., None])[..., 0] + np.einsum("iak,ia->ak", W, x)
 
     def _start(self, x: np.ndarray) -> None:
         """Filter state at rest on x (the chip has been on long before the firmware asks)."""
@@ -260,14 +281,12 @@ class Mpu6050Sensor:
             self._start(x[0])   # at rest on the noise-free signal: a noise sample is no rest state
         x += self.rng.standard_normal(x.shape) * self.noise_std
         self._cfg = dlpf_cfg
-        b, a, z = self._b, self._a, self._z
+        z = self._z.T                                    # (6, 2)
         period = int(smplrt_div) + 1
-        for i, k in enumerate(ks):
-            xi = x[i]
-            y = b[0] * xi + z[0]
-            z[0] = b[1] * xi - a[1] * y + z[1]
-            z[1] = b[2] * xi - a[2] * y
-            if k % period == 0:
-                self.output = (y[:3].copy(), y[3:].copy())
+        latched = end - end % period - self._k           # the last sample the registers take
+        if latched >= 0:
+            y = self._b[0] * x[latched] + self._state_after(z, x[:latched])[:, 0]
+            self.output = (y[:3].copy(), y[3:].copy())
+        self._z = self._state_after(z, x).T.copy()
         self._k = end + 1
         return self.output
