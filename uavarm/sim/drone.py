@@ -169,42 +169,54 @@ def fly(t, wind, p_ref, v_ref, a_ref, params: DroneParams = DroneParams()) -> Fl
     pitch = np.zeros(n)
     acc = np.zeros((n, 3))
     pos = np.zeros((n, 3))
-    p = np.array(p_ref[0], dtype=float)
-    v = np.array(v_ref[0], dtype=float)
+    # per axis in plain floats: a step is some thirty operations on 3-vectors, which numpy
+    # makes ten times dearer than the arithmetic
+    px, py, pz = (float(x) for x in p_ref[0])
+    vx, vy, vz = (float(x) for x in v_ref[0])
+    p_ref, v_ref, a_ref, wind = (np.asarray(x, dtype=float).tolist() for x in (p_ref, v_ref, a_ref, wind))
     # start trimmed against the initial wind (integrator holding it), so no start-up transient
-    integ = np.zeros(3)
-    integ[:2] = -P.drag * (np.asarray(wind[0])[:2] - v[:2]) / P.pos_ki
+    ix = -P.drag * (wind[0][0] - vx) / P.pos_ki
+    iy = -P.drag * (wind[0][1] - vy) / P.pos_ki
+    iz = 0.0
     wn2, c = P.attitude_wn ** 2, 2 * P.attitude_zeta * P.attitude_wn
+    kp, kd, ki, drag = P.pos_kp, P.pos_kd, P.pos_ki, P.drag
     max_tilt = math.radians(P.max_tilt_deg)
-    g_w = np.array([0.0, 0.0, -G])
-    att = None
-    att_rate = np.zeros(2)
+    r = q = rate_r = rate_q = 0.0     # attitude and its rate, rad and rad/s
     for k in range(n):
-        e = p_ref[k] - p
-        integ += e * dt
-        a_des = P.pos_kp * e + P.pos_kd * (v_ref[k] - v) + P.pos_ki * integ + a_ref[k]
-        thrust_vec = a_des - g_w + P.drag * v       # own drag fed forward; the wind is the I term's
-        nrm = thrust_vec / np.linalg.norm(thrust_vec)
-        roll_cmd = math.atan2(-nrm[1], math.hypot(nrm[0], nrm[2]))
-        pitch_cmd = math.atan2(nrm[0], nrm[2])
+        (rx, ry, rz), (wx, wy, wz) = p_ref[k], v_ref[k]
+        ix += (rx - px) * dt
+        iy += (ry - py) * dt
+        iz += (rz - pz) * dt
+        ax_ref, ay_ref, az_ref = a_ref[k]
+        # a_des - g_w + own drag fed forward; the wind is the I term's
+        tx = kp * (rx - px) + kd * (wx - vx) + ki * ix + ax_ref + drag * vx
+        ty = kp * (ry - py) + kd * (wy - vy) + ki * iy + ay_ref + drag * vy
+        tz = kp * (rz - pz) + kd * (wz - vz) + ki * iz + az_ref + G + drag * vz
+        norm = math.sqrt(tx * tx + ty * ty + tz * tz)
+        nx, ny, nz = tx / norm, ty / norm, tz / norm
+        roll_cmd = math.atan2(-ny, math.hypot(nx, nz))
+        pitch_cmd = math.atan2(nx, nz)
         tilt = math.acos(min(1.0, math.cos(roll_cmd) * math.cos(pitch_cmd)))
         if tilt > max_tilt:
             roll_cmd *= max_tilt / tilt
             pitch_cmd *= max_tilt / tilt
-        if att is None:
-            att = np.array([roll_cmd, pitch_cmd])
-        att_acc = wn2 * (np.array([roll_cmd, pitch_cmd]) - att) - c * att_rate
-        att_rate += att_acc * dt
-        att += att_rate * dt
-        r, q = att
-        body_z = np.array([math.sin(q) * math.cos(r), -math.sin(r), math.cos(q) * math.cos(r)])
-        thrust = float(thrust_vec @ body_z)
-        a = body_z * thrust + g_w - P.drag * (v - wind[k])
-        v = v + a * dt
-        p = p + v * dt
+        if k == 0:
+            r, q = roll_cmd, pitch_cmd    # the attitude starts where it is commanded
+        rate_r += (wn2 * (roll_cmd - r) - c * rate_r) * dt
+        rate_q += (wn2 * (pitch_cmd - q) - c * rate_q) * dt
+        r += rate_r * dt
+        q += rate_q * dt
+        bx, by, bz = math.sin(q) * math.cos(r), -math.sin(r), math.cos(q) * math.cos(r)
+        thrust = tx * bx + ty * by + tz * bz
+        wind_x, wind_y, wind_z = wind[k]
+        a_x = bx * thrust - drag * (vx - wind_x)
+        a_y = by * thrust - drag * (vy - wind_y)
+        a_z = bz * thrust - G - drag * (vz - wind_z)
+        vx, vy, vz = vx + a_x * dt, vy + a_y * dt, vz + a_z * dt
+        px, py, pz = px + vx * dt, py + vy * dt, pz + vz * dt
         roll[k], pitch[k] = r, q
-        acc[k] = a
-        pos[k] = p
+        acc[k] = a_x, a_y, a_z
+        pos[k] = px, py, pz
     return Flight(t, roll, pitch, acc, pos)
 
 
