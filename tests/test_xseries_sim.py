@@ -369,3 +369,23 @@ def test_on_a_sagging_supply():
     PH.write4ByteTxRx(port, 1, 116, 4000)
     bus.step(0.2)
     assert PH.read2ByteTxRx(port, 1, 144) == (116, sdk.COMM_SUCCESS, 0)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.binary(max_size=5), st.lists(st.binary(min_size=8, max_size=8), min_size=1, max_size=3)),
+                min_size=1, max_size=4), st.data())
+def test_the_simulators_packet_reader_finds_the_sdks_sync_writes(parts, data):
+    """SimBoard records an X-series arm's goals by reading the bus bytes: the SDK's
+    GroupSyncWrite packets (stuffed where the data holds FF FF FD), between junk and beside a
+    copy with a broken CRC, are found whole and unstuffed, and the broken one is not."""
+    from sdk_capture import sdk_sync_write
+    from uavarm.sim.xseries_sim import INST_SYNC_WRITE, instruction_packets
+    handler = packet_handler(2.0)
+    stream, want = b"", []
+    for junk, entries in parts:
+        ids = list(range(1, len(entries) + 1))
+        pkt = sdk_sync_write(handler, 112, 8, ids, b"".join(entries))
+        broken = pkt[:-1] + bytes([pkt[-1] ^ data.draw(st.integers(1, 255))])
+        stream += junk.replace(b"\xff", b"") + broken + pkt
+        want.append((0xFE, INST_SYNC_WRITE, bytes([112, 0, 8, 0]) + b"".join(bytes([i]) + e for i, e in zip(ids, entries))))
+    assert instruction_packets(stream) == want

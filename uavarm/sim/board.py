@@ -1,5 +1,6 @@
-"""A simulated board: the firmware application (host build) wired to simulated AX-12A
-servos, an MPU-6050 register file and the drone's link, in deterministic simulated time.
+"""A simulated board: the firmware application (host build) wired to simulated servos (the
+AX-12A or the X-series servo the model file names), an MPU-6050 register file and the drone's
+link, in deterministic simulated time.
 
 The application is reached only through what the hardware has: link bytes, servo-bus bytes
 and the supply switch (to and from uavarm.sim.ax12_sim), IMU registers (uavarm.sim.mpu6050_sim),
@@ -22,7 +23,7 @@ import numpy as np
 from .. import rotation
 from ..build import firmware
 from ..link import llcp, messages
-from . import ax12_sim
+from . import ax12_sim, xseries_sim
 from .arm_load import ArmMasses, gravity_torques
 from ..model import attitude, config, servo as servo_map
 from .imu_model import Mpu6050Sensor
@@ -44,6 +45,20 @@ class SyncCommand:
 def baud_register(baud: float) -> int:
     """The AX-12A Baud Rate register value for a bus speed: bps = 2e6 / (value + 1)."""
     return round(2_000_000 / baud) - 1
+
+
+def make_servo(model, joint: int, *, position: float | None = None, lag: float = 0.0, deadband: bool = True):
+    """The simulated servo of a joint as the model file names it (servo.model): an AX-12A,
+    or an X-series servo, at the model's bus speed, its shaft lagging by `lag` s; an AX-12A
+    with its compliance margin if deadband (an X-series servo holds by its PID)."""
+    s = model.servos[joint]
+    kw = {} if position is None else {"position": float(position)}
+    if model.servo_model.protocol == 2:
+        register = next(v for v, bps in model.servo_model.bauds.items() if bps == model.servo_baud)
+        return xseries_sim.XServo(xseries_sim.MODELS[model.servo_model.name], s.id, time_constant=lag,
+                                  table={"baud_rate": register}, **kw)
+    return ax12_sim.AX12(s.id, time_constant=lag, deadband=deadband,
+                         table={"baud_rate": baud_register(model.servo_baud)}, **kw)
 
 
 def parse_instructions(data: bytes) -> list[tuple[int, int, bytes]]:
@@ -207,8 +222,7 @@ class SimBoard:
         self.imu = Mpu6050(memoryview(self.ffi.buffer(self.hp.imu_regs)))
         if servos is None:
             lag = m.servo_response_lag if servo_lag is None else servo_lag
-            servos = [ax12_sim.AX12(s.id, table={"baud_rate": baud_register(m.servo_baud)}, time_constant=lag,
-                                    deadband=lag > 0) for s in m.servos]
+            servos = [make_servo(m, j, lag=lag, deadband=lag > 0) for j in range(len(m.servos))]
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo, supply=ax12_sim.supply_of(supply))
         self.bus.power(False)
         self._truth_zero, self._truth_direction = servo_truth_of(m, servo_truth)
@@ -398,9 +412,12 @@ class SimBoard:
             self.bus.write(data)
             if self.record:
                 self.servo_tx += data
-                for id_, inst, params in parse_instructions(data):
-                    if inst == ax12_sim.INST_SYNC_WRITE:
-                        self.commands.append(self._sync_command(params))
+                if self.model.servo_model.protocol == 2:
+                    self.commands += [self._sync_command2(params) for _, inst, params in xseries_sim.instruction_packets(data)
+                                      if inst == xseries_sim.INST_SYNC_WRITE]
+                else:
+                    self.commands += [self._sync_command(params) for _, inst, params in parse_instructions(data)
+                                      if inst == ax12_sim.INST_SYNC_WRITE]
         n = self.lib.host_port_link_take(self.hp, buf, len(buf))
         if n:
             data = bytes(self.ffi.buffer(buf, n))
@@ -433,6 +450,16 @@ class SimBoard:
                 id_ = params[k]
                 goal[id_] = int.from_bytes(params[k + 1:k + 3], "little")
                 speed[id_] = int.from_bytes(params[k + 3:k + 5], "little")
+        return SyncCommand(self.time, goal, speed)
+
+    def _sync_command2(self, params: bytes) -> SyncCommand:
+        """A Protocol 2.0 SYNC_WRITE of Profile Velocity(112) and Goal Position(116), 4 bytes each."""
+        addr, size = int.from_bytes(params[:2], "little"), int.from_bytes(params[2:4], "little")
+        goal, speed = {}, {}
+        if addr == 112 and size == 8:
+            for k in range(4, len(params) - 8, 9):
+                speed[params[k]] = int.from_bytes(params[k + 1:k + 5], "little")
+                goal[params[k]] = int.from_bytes(params[k + 5:k + 9], "little")
         return SyncCommand(self.time, goal, speed)
 
     # ------------------------------------------------------------------ views

@@ -25,8 +25,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from . import ax12_sim, drone, imu_model, scenarios
-from .board import SimBoard, baud_register
+from . import drone, imu_model, scenarios
+from .board import SimBoard, make_servo
 from ..model import kinematics
 from ..build.variants import Variant
 
@@ -193,8 +193,7 @@ def make_servos(model, lag: float, deadband: bool):
     out = []
     for j, s in enumerate(model.servos):
         park = float(servo_map.joint_to_units(model, j, math.radians(model.park_deg[j])))
-        out.append(ax12_sim.AX12(s.id, position=float(round(park)), time_constant=lag, deadband=deadband,
-                                 table={"baud_rate": baud_register(model.servo_baud)}))
+        out.append(make_servo(model, j, position=round(park), lag=lag, deadband=deadband))
     return out
 
 

@@ -99,6 +99,7 @@ class Model:
 
 XM430_W350 = Model("XM430-W350", 1020, 46.0, 4.1, 2.3, 80, 160, 95, 350, True)
 XL430_W250 = Model("XL430-W250", 1060, 61.0, 1.5, 1.4, 72, 140, 60, 265, False)
+MODELS = {m.name: m for m in (XM430_W350, XL430_W250)}
 
 
 @dataclass(frozen=True)
@@ -203,6 +204,20 @@ def unstuffed(body: bytes) -> bytes:
     return bytes(out)
 
 
+def instruction_packets(data: bytes) -> list[tuple[int, int, bytes]]:
+    """(id, instruction, params unstuffed) of every instruction packet with a good CRC in data."""
+    out, i = [], data.find(HEADER)
+    while 0 <= i and i + 10 <= len(data):
+        end = i + 7 + int.from_bytes(data[i + 5:i + 7], "little")
+        pkt = data[i:end]
+        if len(pkt) == end - i and crc16(pkt[:-2]) == int.from_bytes(pkt[-2:], "little") and pkt[7] != INST_STATUS:
+            out.append((pkt[4], pkt[7], unstuffed(pkt[8:-2])))
+            i = data.find(HEADER, end)
+        else:
+            i = data.find(HEADER, i + 1)
+    return out
+
+
 def status_packet(id_: int, error: int, params: bytes = b"") -> bytes:
     body = stuffed(bytes([INST_STATUS, error]) + bytes(params))
     head = HEADER + bytes([id_]) + (len(body) + 2).to_bytes(2, "little")
@@ -244,7 +259,8 @@ class XServo:
     voltage      supply in V: the no-load speed and stall torque are in proportion to it
     temperature  degrees C (set the attribute later to overheat it)
     time_constant  s, first-order lag of the shaft behind the profile (0 = none)
-    load_torque  N m from outside on the shaft, CCW (position growing) positive (attribute)
+    load_torque  N m from outside on the shaft, CCW (position growing) positive (attribute;
+                 or outside_torque, a function giving it)
     table        register values to start from, e.g. {"baud_rate": 3, "return_delay_time": 0}
     """
 
@@ -262,6 +278,8 @@ class XServo:
         self.time_constant = time_constant
         self.firmware_version = firmware_version   # not given by the e-manual: a choice
         self.load_torque = 0.0
+        # or, as AX12's, a function giving it at the moment (gravity on the arm: SimBoard)
+        self.outside_torque = None
         self.before_packet = None   # as AX12's: the bus brings the motion up to the packet
         self.powered = True
         self.table = bytearray(TABLE_SIZE)
@@ -509,7 +527,8 @@ class XServo:
 
     def motor_torque(self) -> float:
         """The torque the motor applies to hold the shaft against the load, N m (CCW +)."""
-        return -self.load_torque if self.torque_on else 0.0
+        load = self.load_torque if self.outside_torque is None else self.outside_torque()
+        return -load if self.torque_on else 0.0
 
     def _latch_current(self) -> None:
         """Present Current (XM430: 2.69 mA units, through the torque constant at stall) or

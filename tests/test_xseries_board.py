@@ -1,0 +1,139 @@
+"""An X-series arm on the simulated board: the firmware built from a model file with
+servo.model = "XM430-W350" runs against three simulated XM430-W350s (uavarm/sim/xseries_sim.py)
+that SimBoard makes from the model file itself, as it makes AX-12As for the committed one.
+
+Oracles, none taken from the C under test: plain geometry (tests/oracles.py) on the simulated
+shafts, turned into joint angles here from the XM430's 4096 units a turn and the model file's
+zeros and directions; Protocol 2.0's SYNC_WRITE layout (Profile Velocity(112) and Goal
+Position(116), 4 bytes each, per the e-manual) read from the bus bytes by the simulator's
+packet reader, whose framing test_servo_bus2 checks against the SDK.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import oracles
+from conftest import once_per_run
+from test_servo_models import xm430_text
+from uavarm.build import firmware
+from uavarm.codegen import generate
+from uavarm.model import config
+from uavarm.sim.board import SimBoard
+from uavarm.sim.xseries_sim import XServo
+
+UNITS_PER_TURN = 4096             # XM430-W350 e-manual: Present Position, 0.088 deg a unit
+KEEP_ALIVE = 0.25                 # s between the drone's frames
+
+
+@pytest.fixture(scope="module")
+def xm430(tmp_path_factory):
+    """(model, ffi, lib): the firmware built for the host from an XM430-W350 model file."""
+    def make(folder):
+        (folder / "arm.toml").write_text(xm430_text())
+        assert generate.main(["--model", str(folder / "arm.toml"), "--out", str(folder / "generated")]) == 0
+        return str(folder)
+    folder = Path(once_per_run(tmp_path_factory, "xm430_firmware", make))
+    ffi, lib = firmware.load(folder / "generated")
+    return config.load(folder / "arm.toml"), ffi, lib
+
+
+def joints_of(model, units) -> np.ndarray:
+    """Joint angles (rad) of shaft positions (..., 3) in XM430 units."""
+    u = np.asarray(units, dtype=float)
+    zero = np.array([s.zero for s in model.servos], dtype=float)
+    sign = np.array([s.direction for s in model.servos], dtype=float)
+    return (u - zero) * sign * 2 * math.pi / UNITS_PER_TURN
+
+
+def relaxed(model):
+    """The model with every boundary moved out by what half a unit per joint can move the arm."""
+    half = math.pi / UNITS_PER_TURN
+    reach = model.L2 + model.L3
+    mm = half * (2 * reach + model.L3) + 1e-3
+    deg = math.degrees(half) + 1e-4
+    limits = tuple(dataclasses.replace(l, min_deg=l.min_deg - deg, max_deg=l.max_deg + deg) for l in model.limits)
+    return dataclasses.replace(model, limits=limits, body_z=model.body_z + mm, leg_distance=model.leg_distance + mm,
+                               leg_half_width=model.leg_half_width - deg)
+
+
+def board_of(xm430, **kw) -> SimBoard:
+    model, ffi, lib = xm430
+    board = SimBoard(model, lib=(ffi, lib), **kw)
+    board.shaft_trace = []
+    return board
+
+
+def keep(board, seconds: float, **set_position) -> None:
+    """Runs `seconds`, the drone keeping the link alive with engage (or a set position)."""
+    end = board.time + seconds
+    while board.time < end - 1e-9:
+        if set_position:
+            board.send("set_position", **set_position)
+        else:
+            board.send("engage", on=1)
+        board.run(min(KEEP_ALIVE, end - board.time))
+
+
+def unsafe_shafts(board) -> list:
+    """The traced shaft positions (supply on) that plain geometry refuses, with the servo rounding."""
+    rows = np.array(board.shaft_trace, dtype=float)
+    on = rows[rows[:, 1] > 0]
+    status, _ = oracles.check_pose(relaxed(board.model), joints_of(board.model, on[:, 2:]))
+    return on[status != 0].tolist()
+
+
+def test_the_simulated_board_makes_the_model_files_servos(xm430):
+    board = board_of(xm430)
+    assert [type(s) for s in board.bus.servos] == [XServo] * 3
+    assert [s.model.name for s in board.bus.servos] == ["XM430-W350"] * 3
+    assert [s.id for s in board.bus.servos] == [s.id for s in xm430[0].servos]
+    assert all(s.register("baud_rate") == 3 for s in board.bus.servos)         # 1 Mbit/s
+
+
+def test_an_xm430_arm_engages_at_its_set_position_and_every_goal_and_shaft_is_safe(xm430):
+    """From hanging straight down (every shaft at its zero): enable, engage; the end
+    effector, by plain geometry from the shafts, comes to the set position the heartbeat
+    reports; every goal the bus carried and every shaft position on the way is a pose
+    plain geometry accepts."""
+    model = xm430[0]
+    board = board_of(xm430)
+    board.send("enable", on=1)
+    board.run(1.5)
+    keep(board, 4.0)
+    hb = board.heartbeats[-1]
+    assert hb["engaged"] and hb["faults"] == 0, hb
+    ee = oracles.arm_points(model, joints_of(model, [s.position for s in board.bus.servos]))[2]
+    set_point = np.array([hb["set_x"], hb["set_y"], hb["set_z"]])
+    assert np.linalg.norm(ee - set_point) < 0.3, (ee, set_point)   # 0.088 deg a unit at ~140 mm: 0.2 mm a joint
+    goals = np.array([[c.goal[s.id] for s in model.servos] for c in board.commands])
+    assert len(goals) > 100
+    status, _ = oracles.check_pose(relaxed(model), joints_of(model, goals))
+    assert (status == 0).all(), goals[status != 0][:3]
+    assert not unsafe_shafts(board)
+
+
+def test_an_xm430_arm_routed_round_a_leg_and_parked_keeps_its_shafts_safe(xm430):
+    """A set position on the far side of a leg from where the arm works (the route turns joint
+    1 with the arm tucked), then disengage (the park): the shafts, lagging their goals,
+    stand in a safe pose at every main-loop pass."""
+    model = xm430[0]
+    board = board_of(xm430, servo_lag=0.045)
+    board.send("enable", on=1)
+    board.run(1.5)
+    keep(board, 3.0)
+    leg = math.radians(model.leg_angles[0])
+    # beside the first leg, reaching out past the leg distance: the arm goes round, not through
+    far = (model.leg_distance + 10.0) * np.array([math.cos(leg + 0.6), -math.sin(leg + 0.6)])
+    keep(board, 6.0, x=float(far[0]), y=float(far[1]), z=-110.0)
+    board.send("engage", on=0)
+    board.run(4.0)
+    hb = board.heartbeats[-1]
+    assert not hb["engaged"] and hb["faults"] == 0, hb
+    q1 = joints_of(model, np.array(board.shaft_trace, dtype=float)[:, 2:])[:, 0]
+    assert np.ptp(q1) > math.radians(20), "joint 1 hardly turned: the move tested nothing"
+    assert not unsafe_shafts(board)
