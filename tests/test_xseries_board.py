@@ -22,6 +22,7 @@ from conftest import once_per_run
 from test_servo_models import xm430_text
 from uavarm.build import firmware
 from uavarm.codegen import generate
+from uavarm.link import messages
 from uavarm.model import config
 from uavarm.sim.board import SimBoard
 from uavarm.sim.xseries_sim import XServo
@@ -137,3 +138,27 @@ def test_an_xm430_arm_routed_round_a_leg_and_parked_keeps_its_shafts_safe(xm430)
     q1 = joints_of(model, np.array(board.shaft_trace, dtype=float)[:, 2:])[:, 0]
     assert np.ptp(q1) > math.radians(20), "joint 1 hardly turned: the move tested nothing"
     assert not unsafe_shafts(board)
+
+
+X_EDITS = {"servo.model": "XM430-W350", "servo.baud": 1_000_000, "servo.units_max": 4095,
+           "servo.range_deg": 359.912109375, "servo.theta1.zero": 2048, "servo.theta2.zero": 2048,
+           "servo.theta3.zero": 2048}
+
+
+def test_the_closed_loop_simulator_flies_an_xm430_variant_of_the_model_file():
+    """The committed model file with the XM430-W350 edits (the simulator's and the report's
+    --set path) flies 10 s of hover on XM430-W350s: the end effector, from the shafts by
+    plain geometry and the drone's true attitude (the simulator's error), within 3 mm RMS."""
+    from uavarm.build import variants
+    from uavarm.sim import closed_loop, scenarios
+    variant = variants.build(X_EDITS)
+    assert variant.model.servo_model.name == "XM430-W350"
+    servos = closed_loop.make_servos(variant.model, 0.0265, True)
+    assert [type(s) for s in servos] == [XServo] * 3
+    run = closed_loop.simulate(scenarios.load("hover"), variant, 0,
+                               closed_loop.Settings(seconds=10.0, preflight=3.0, settle=3.0))
+    e = np.linalg.norm(run.error_mm[run.scored], axis=1)
+    assert run.scored.sum() > 900 and np.isfinite(e).all()
+    assert math.sqrt(np.mean(e ** 2)) < 3.0, math.sqrt(np.mean(e ** 2))
+    out_of_reach = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
+    assert set(run.faults) <= {out_of_reach}, run.faults      # at most a gust's tilt out of reach

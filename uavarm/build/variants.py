@@ -17,7 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import cbuild, firmware
-from ..model import config, servo_models
+from ..model import config
 from ..toml_text import toml_value
 
 SIM_BUILD = cbuild.ROOT / "build" / "sim"
@@ -164,9 +164,6 @@ def model_of(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> c
         model = config.parse(edited_text(changes, base).encode(), Path(base))
     except config.ModelError as exc:
         raise VariantError(str(exc)) from None
-    if model.servo_model.name != servo_models.DEFAULT:
-        raise VariantError(f"{base}: servo.model: the simulated board's servos (unlike the firmware's bus "
-                           f"driver) are {servo_models.DEFAULT}s only; a {model.servo_model.name} variant cannot be simulated")
     return model
 
 
