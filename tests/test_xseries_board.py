@@ -162,3 +162,56 @@ def test_the_closed_loop_simulator_flies_an_xm430_variant_of_the_model_file():
     assert math.sqrt(np.mean(e ** 2)) < 3.0, math.sqrt(np.mean(e ** 2))
     out_of_reach = 1 << [name for name, _ in messages.FAULTS].index("out_of_reach")
     assert set(run.faults) <= {out_of_reach}, run.faults      # at most a gust's tilt out of reach
+
+
+@pytest.mark.realtime
+def test_the_sitl_serves_an_xm430_arm_to_the_link_client(xm430):
+    """The SITL with the XM430-W350 build (the board the user rehearses on once the model file
+    names the servo): the link client enables it, it parks, goes to a set position when
+    engaged (the end effector by plain geometry from the simulated shafts within 0.5 mm of
+    it), and disable cuts the supply."""
+    from uavarm.link import ArmLink
+    from uavarm.sim.sitl import Sitl
+    model, ffi, lib = xm430
+    target = np.array([60.0, 20.0, -120.0])
+    sitl = Sitl(speed=2.0, model=model, lib=(ffi, lib)).start()
+
+    def wait_for(arm, cond, sim_seconds):
+        end = sitl.board.time + sim_seconds
+        while sitl.board.time < end:
+            hb = arm.next_heartbeat()
+            arm.keep_alive()
+            if cond(hb):
+                return hb
+        return None
+
+    def ee():
+        return oracles.arm_points(model, joints_of(model, [s.position for s in sitl.board.bus.servos]))[2]
+    try:
+        with ArmLink(sitl.device, clock=sitl.clock) as arm:
+            moved = sitl.submit("move joint 2 30").result(timeout=60)
+            assert "turned by hand to 30 deg" in moved and "(servo 2 at" in moved, moved   # in 4096 units a turn
+            assert abs(sitl.board.bus.servos[1].position - (2048 + model.servos[1].direction * 30 * 4096 / 360)) < 1
+            assert arm.enable()["enabled"] == 1
+            park = np.radians(model.park_deg)
+            assert wait_for(arm, lambda hb: np.abs([hb["p1"] - park[0], hb["p2"] - park[1], hb["p3"] - park[2]]).max()
+                            < math.radians(0.5), 4.0) is not None, "the park was not reached"
+            arm.set_position(*target)
+            assert arm.engage()["engaged"] == 1
+            assert wait_for(arm, lambda hb: np.linalg.norm(ee() - target) < 0.5, 4.0) is not None, ee()
+            where = sitl.submit("where").result(timeout=60)
+            assert where.count("holding, present current") == 3, where
+            assert arm.disable()["enabled"] == 0
+            assert not sitl.board.servo_power
+    finally:
+        sitl.stop()
+
+
+def test_the_servo_calibration_refuses_an_x_series_arm_before_touching_it(xm430):
+    """It reads the AX-12A's Present Load word to tell a direction: on an XM430's Present
+    Current that would be a wrong answer, so it stops first, naming the servo."""
+    from uavarm.calibrate import servo_zero
+    from uavarm.calibrate.fit import CalibrationError
+    untouchable = object()            # any use of the arm raises AttributeError, not the refusal
+    with pytest.raises(CalibrationError, match="servo.model is XM430-W350"):
+        servo_zero.servos(untouchable, xm430[0].path, ask=None, confirm=None)

@@ -302,6 +302,10 @@ def _powered_limp(arm, ask) -> None:
 def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0, allow_unusual: bool = False) -> bool:
     """Zeros and directions, a verification move, then the model file (see the module's text)."""
     m = config.load(model_path)
+    if m.servo_model.protocol != 1:
+        raise CalibrationError(f"servo.model is {m.servo_model.name}: this calibration reads the AX-12A's Present "
+                               "Load and jogs in its units, not yet an X-series servo's; set the zeros and directions "
+                               "in the model file by hand")
     why = unsafe_on_route(m)
     if why:
         raise CalibrationError(f"this model's verification poses are not safe with a calibration that is off: {why}")

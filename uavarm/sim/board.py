@@ -150,9 +150,6 @@ class Turning:
         return tuple(self.orientation(t)[2]), tuple(self._progress(t)[1] * np.asarray(self.turn, dtype=float))
 
 
-UNITS_PER_RAD = ax12_sim.UNITS_PER_DEGREE * 180 / math.pi
-
-
 def servo_truth_of(model, truth) -> tuple[tuple[float, ...], tuple[int, ...]]:
     """(zeros, directions) of the servos as mounted: `truth` checked, or the model file's."""
     if truth is None:
@@ -226,6 +223,7 @@ class SimBoard:
         self.bus = ax12_sim.AX12Bus(servos, baud=m.servo_baud, echo=bus_echo, supply=ax12_sim.supply_of(supply))
         self.bus.power(False)
         self._truth_zero, self._truth_direction = servo_truth_of(m, servo_truth)
+        self._units_per_rad = float(servo_map.units_per_rad(m))     # the servo's, as the model names it
         self.arm_masses = arm_masses or ArmMasses.of(m)
         # the arm's shafts, joint by joint (still there if a cable is pulled off the bus)
         self.joint_servos = [next((sv for sv in self.bus.servos if sv.id == s.id), None) for s in m.servos]
@@ -480,7 +478,7 @@ class SimBoard:
     def true_joints(self) -> list[float]:
         """The joints' physical angles (rad), from the shafts as the servos are really mounted
         (servo_truth); a joint without its servo: 0."""
-        return [0.0 if sv is None else d * (sv.position - z) / UNITS_PER_RAD
+        return [0.0 if sv is None else d * (sv.position - z) / self._units_per_rad
                 for sv, z, d in zip(self.joint_servos, self._truth_zero, self._truth_direction)]
 
     @property
@@ -490,7 +488,7 @@ class SimBoard:
 
     def truth_units(self, joint: int, angle: float) -> float:
         """The servo position (units) at which a joint really is at `angle` (rad)."""
-        return self._truth_zero[joint] + self._truth_direction[joint] * angle * UNITS_PER_RAD
+        return self._truth_zero[joint] + self._truth_direction[joint] * angle * self._units_per_rad
 
     def _gravity_on_shaft(self, joint: int) -> float:
         """The torque (N m) gravity exerts on a joint's servo shaft now, CCW positive."""

@@ -39,6 +39,7 @@ import numpy as np
 
 from .. import rotation
 from .ax12_sim import AX12, AX12Bus
+from .xseries_sim import XServo
 from .board import Gravity, Rocking, SimBoard, Turning, reset_cause_value
 from .imu_model import Mpu6050Sensor
 from ..model import config
@@ -97,6 +98,16 @@ COMMANDS = """commands (a hand on the simulated hardware):
   where               the joints' true angles, the board's attitude, each servo's state
   help                this list"""
 AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def holding_load(servo) -> str:
+    """What a holding servo reads of its load, in its own register's units and sense."""
+    if isinstance(servo, XServo):
+        name = "present_current" if servo.model.current_sensing else "present_load"
+        value = servo.register(name)
+        return f"{name.replace('_', ' ')} {abs(value)} {'CCW' if value >= 0 else 'CW'}"
+    load = servo.present_load()
+    return f"load {load & 0x3FF} {'CW' if load & 0x400 else 'CCW'}"
 
 
 def degrees_text(radians: float) -> str:
@@ -277,8 +288,9 @@ class Sitl:
         if servo.torque_on:
             return f"joint {j} holds its position: the torque is on"
         units = self.board.truth_units(j - 1, math.radians(deg))
-        if not 0 <= units <= 1023:
-            return f"joint {j} at {deg:g} deg is past its servo's travel (units {units:.0f}, 0 to 1023)"
+        top = self.board.model.servo_units_max
+        if not 0 <= units <= top:
+            return f"joint {j} at {deg:g} deg is past its servo's travel (units {units:.0f}, 0 to {top})"
         servo.turn_by_hand(units)
         return f"joint {j} turned by hand to {deg:g} deg (servo {servo.id} at {units:.1f} units)"
 
@@ -307,8 +319,7 @@ class Sitl:
             elif not servo.powered:
                 states.append(f"{j} unpowered")
             elif servo.torque_on:
-                load = servo.present_load()
-                states.append(f"{j} holding, load {load & 0x3FF} {'CW' if load & 0x400 else 'CCW'}")
+                states.append(f"{j} holding, {holding_load(servo)}")
             else:
                 states.append(f"{j} limp")
         return f"joints {joints} deg (true); board roll {roll}, pitch {pitch} deg; servos: {', '.join(states)}"
