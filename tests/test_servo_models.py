@@ -185,15 +185,14 @@ def test_x_series_files_are_checked_against_the_x_series(tmp_path, text, key, wo
     assert str(path) in msg and f": {key}: " in msg and words in msg, msg
 
 
-def test_the_simulator_refuses_an_x_series_variant():
-    """The simulated board's servos are AX-12As (the firmware's bus driver speaks to X-series
-    servos too): an X-series variant would be simulated with the wrong servo, so it is refused
-    before anything is generated."""
+def test_an_x_series_variant_is_the_x_series_model():
+    """The simulated board makes the servos the model file names: an X-series variant's model
+    is the X-series one, its units and baud as edited; the AX-12A's stays the AX-12A."""
     changes = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.range_deg": 359.912109375,
                "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
-    assert config.parse(variants.edited_text(changes).encode(), Path("arm.toml")).servo_model.name == "XM430-W350"
-    with pytest.raises(variants.VariantError, match="servo.model: the simulated board's servos .* are AX-12As"):
-        variants.model_of(changes)
+    model = variants.model_of(changes)
+    assert model.servo_model is servo_models.MODELS["XM430-W350"]
+    assert (model.servo_units_max, model.servo_baud, [s.zero for s in model.servos]) == (4095, 1_000_000, [2048] * 3)
     assert variants.model_of({"servo.model": "AX-12A"}).servo_model is servo_models.AX_12A
 
 
