@@ -215,3 +215,33 @@ def test_the_servo_calibration_refuses_an_x_series_arm_before_touching_it(xm430)
     untouchable = object()            # any use of the arm raises AttributeError, not the refusal
     with pytest.raises(CalibrationError, match="servo.model is XM430-W350"):
         servo_zero.servos(untouchable, xm430[0].path, ask=None, confirm=None)
+
+
+def test_an_xm430_holding_the_arm_reads_the_current_its_weight_asks(xm430):
+    """Level, engaged at a set position: each of joints 2 and 3 reads the Present Current that
+    holds its share of the arm's weight. Oracle: planar statics with the model file's masses
+    (g times each mass's horizontal distance from the joint's axis, in the arm's plane), the
+    XM430-W350's 4.1 N m at 2.3 A and its 2.69 mA unit, in the servo's own sense."""
+    model = xm430[0]
+    board = board_of(xm430)
+    board.send("enable", on=1)
+    board.run(1.5)
+    board.send("set_position", x=60.0, y=20.0, z=-120.0)
+    board.send("engage", on=1)
+    keep(board, 4.0, x=60.0, y=20.0, z=-120.0)
+    assert board.heartbeats[-1]["engaged"]
+    q = joints_of(model, [s.position for s in board.bus.servos])
+    ms = model.masses
+    g, l2 = 9.80665, model.L2 / 1000
+    elbow_x = l2 * math.sin(q[1])                               # in the arm's plane, m from the shoulder's axis
+    beyond = [(ms.forearm, ms.forearm_com), (ms.end_effector, ms.end_effector_com)]   # g, mm from the elbow
+    forearm_x = [(kg / 1000, d / 1000 * math.sin(q[1] + q[2])) for kg, d in beyond]
+    weight_torque = {                                           # N m, the sense the joint's angle grows
+        1: -g * (ms.servo / 1000 * elbow_x + ms.upper_arm / 1000 * ms.upper_arm_com / 1000 * math.sin(q[1])
+                 + sum(kg * (elbow_x + x) for kg, x in forearm_x)),
+        2: -g * sum(kg * x for kg, x in forearm_x)}
+    for j, torque in weight_torque.items():
+        servo, sense = board.bus.servos[j], model.servos[j].direction
+        expected = sense * -torque * 2.3 / 4.1 / 0.00269     # the motor holds against the weight
+        assert abs(servo.register("present_current") - expected) <= 1.0, (j + 1, servo.register("present_current"), expected)
+    assert abs(weight_torque[1]) > 0.02, "the test pose puts too little weight on joint 2 to tell"
