@@ -232,21 +232,19 @@ def shaft_units(board: SimBoard) -> list[float]:
     return [board.bus.servo(i).position for i in IDS]
 
 
-def _relaxed_model():
+def relaxed_model(m, unit_rad: float):
     """The model with every collision boundary moved out by what rounding a joint angle to
-    the nearest servo unit (half a unit, 0.147 deg, per joint) can move the arm."""
-    half = 0.5 * UNIT_RAD
-    reach = MODEL.L2 + MODEL.L3
-    mm = half * (reach + reach + MODEL.L3) + 1e-3   # joint 1 swings <= reach, 2 and 3 too
+    the nearest servo unit (half of unit_rad per joint; the AX-12A's: 0.147 deg) can move the arm."""
+    half = 0.5 * unit_rad
+    reach = m.L2 + m.L3
+    mm = half * (reach + reach + m.L3) + 1e-3   # joint 1 swings <= reach, 2 and 3 too
     deg = math.degrees(half) + 1e-4
-    limits = tuple(dataclasses.replace(l, min_deg=l.min_deg - deg, max_deg=l.max_deg + deg)
-                   for l in MODEL.limits)
-    return dataclasses.replace(MODEL, limits=limits, body_z=MODEL.body_z + mm,
-                               leg_distance=MODEL.leg_distance + mm,
-                               leg_half_width=MODEL.leg_half_width - deg)
+    limits = tuple(dataclasses.replace(l, min_deg=l.min_deg - deg, max_deg=l.max_deg + deg) for l in m.limits)
+    return dataclasses.replace(m, limits=limits, body_z=m.body_z + mm, leg_distance=m.leg_distance + mm,
+                               leg_half_width=m.leg_half_width - deg)
 
 
-RELAXED = _relaxed_model()
+RELAXED = relaxed_model(MODEL, UNIT_RAD)
 
 
 def poses_ok(units) -> np.ndarray:

@@ -410,12 +410,10 @@ class SimBoard:
             self.bus.write(data)
             if self.record:
                 self.servo_tx += data
-                if self.model.servo_model.protocol == 2:
-                    self.commands += [self._sync_command2(params) for _, inst, params in xseries_sim.instruction_packets(data)
-                                      if inst == xseries_sim.INST_SYNC_WRITE]
-                else:
-                    self.commands += [self._sync_command(params) for _, inst, params in parse_instructions(data)
-                                      if inst == ax12_sim.INST_SYNC_WRITE]
+                packets = xseries_sim.instruction_packets(data) if self.model.servo_model.protocol == 2 \
+                    else parse_instructions(data)
+                self.commands += [self._sync_command(params) for _, inst, params in packets
+                                  if inst == ax12_sim.INST_SYNC_WRITE]
         n = self.lib.host_port_link_take(self.hp, buf, len(buf))
         if n:
             data = bytes(self.ffi.buffer(buf, n))
@@ -441,23 +439,22 @@ class SimBoard:
         return data
 
     def _sync_command(self, params: bytes) -> SyncCommand:
-        addr, size = params[0], params[1]
+        """A SYNC_WRITE of goal position and goal speed (Moving Speed; Profile Velocity), at
+        the addresses and sizes of the model's servo (Protocol 1.0: address and length a byte
+        each; 2.0: two bytes each)."""
+        regs = self.model.servo_model.registers
+        goal_reg, speed_reg = regs["GOAL_POSITION"], regs["GOAL_SPEED"]
+        first = min(goal_reg.address, speed_reg.address)
+        field = 2 if self.model.servo_model.protocol == 2 else 1
+        addr = int.from_bytes(params[:field], "little")
+        size = int.from_bytes(params[field:2 * field], "little")
         goal, speed = {}, {}
-        if addr == 30 and size == 4:
-            for k in range(2, len(params) - 4, 5):
-                id_ = params[k]
-                goal[id_] = int.from_bytes(params[k + 1:k + 3], "little")
-                speed[id_] = int.from_bytes(params[k + 3:k + 5], "little")
-        return SyncCommand(self.time, goal, speed)
-
-    def _sync_command2(self, params: bytes) -> SyncCommand:
-        """A Protocol 2.0 SYNC_WRITE of Profile Velocity(112) and Goal Position(116), 4 bytes each."""
-        addr, size = int.from_bytes(params[:2], "little"), int.from_bytes(params[2:4], "little")
-        goal, speed = {}, {}
-        if addr == 112 and size == 8:
-            for k in range(4, len(params) - 8, 9):
-                speed[params[k]] = int.from_bytes(params[k + 1:k + 5], "little")
-                goal[params[k]] = int.from_bytes(params[k + 5:k + 9], "little")
+        if addr == first and size == goal_reg.size + speed_reg.size:
+            for k in range(2 * field, len(params) - size, size + 1):
+                entry = params[k + 1:k + 1 + size]
+                goal[params[k]], speed[params[k]] = (
+                    int.from_bytes(entry[r.address - first:r.address - first + r.size], "little")
+                    for r in (goal_reg, speed_reg))
         return SyncCommand(self.time, goal, speed)
 
     # ------------------------------------------------------------------ views
