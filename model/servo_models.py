@@ -32,6 +32,7 @@ class ServoModel:
     no_load_rpm: float            # at no_load_volts; falls in proportion to the supply
     no_load_volts: float
     stall_torque_nm: float        # at no_load_volts
+    load_unit_nm: float           # the torque one unit of its load reading (PRESENT_LOAD) stands for, at no_load_volts
     rpm_per_speed_unit: float     # the goal-speed register's unit (Moving Speed / Profile Velocity)
     speed_units_max: int          # the goal speed's upper bound (Moving Speed / Velocity Limit(44))
     bauds: dict                   # Baud Rate register value -> bit/s
@@ -57,6 +58,7 @@ AX_12A = ServoModel(
     name="AX-12A", protocol=1, units_max=1023, deg_per_unit=Fraction(300, 1023),
     # (the legacy AX-12's 0.196 s/60 deg at 10 V, 51 rpm, lies just above the no-load line)
     no_load_rpm=59.0, no_load_volts=12.0, stall_torque_nm=1.5,
+    load_unit_nm=1.5 / 1023,                            # Present Load: 1023 the full torque
     rpm_per_speed_unit=0.111, speed_units_max=1023,     # Moving Speed, joint mode
     bauds={n: 2_000_000 / (n + 1) for n in range(1, 255)},     # 7843 bit/s to 1 Mbit/s
     baud_rule="2,000,000 / (n + 1) bit/s (Baud Rate register n = 1..254)",
@@ -123,17 +125,20 @@ _X_REGISTERS = {
 _X_BAUD_RULE = "9600, 57600, 115200, 1M, 2M, 3M, 4M or 4.5M bit/s (Baud Rate register n = 0..7)"
 
 
-def _x_series(name: str, no_load_rpm: float, stall_torque_nm: float, load: Register, manual: str) -> ServoModel:
+def _x_series(name: str, no_load_rpm: float, stall_torque_nm: float, load: Register, load_unit_nm: float,
+              manual: str) -> ServoModel:
     return ServoModel(
         name=name, protocol=2, units_max=4095, deg_per_unit=Fraction(360, 4096),
-        no_load_rpm=no_load_rpm, no_load_volts=12.0, stall_torque_nm=stall_torque_nm,
+        no_load_rpm=no_load_rpm, no_load_volts=12.0, stall_torque_nm=stall_torque_nm, load_unit_nm=load_unit_nm,
         rpm_per_speed_unit=0.229, speed_units_max=1023, bauds=X_BAUDS, baud_rule=_X_BAUD_RULE,
         registers={**_X_REGISTERS, "PRESENT_LOAD": load}, manual=manual)
 
 
-XL430_W250 = _x_series("XL430-W250", 61.0, 1.5, Register(126, 2, "Present Load"),
+# Present Load: 0.1 % of the stall torque. Present Current: 2.69 mA, and the stall torque at the
+# stall current (4.1 N m at 2.3 A, 12 V).
+XL430_W250 = _x_series("XL430-W250", 61.0, 1.5, Register(126, 2, "Present Load"), 1.5 / 1000,
                        "https://emanual.robotis.com/docs/en/dxl/x/xl430-w250/")
-XM430_W350 = _x_series("XM430-W350", 46.0, 4.1, Register(126, 2, "Present Current"),
+XM430_W350 = _x_series("XM430-W350", 46.0, 4.1, Register(126, 2, "Present Current"), 0.00269 * 4.1 / 2.3,
                        "https://emanual.robotis.com/docs/en/dxl/x/xm430-w350/")
 
 MODELS = {m.name: m for m in (AX_12A, XL430_W250, XM430_W350)}

@@ -16,6 +16,7 @@ import pytest
 import oracles
 from conftest import wait_simulated
 from test_calibrate import SECONDS, enabled_sitl, run_sitl
+from test_xseries_board import xm430  # noqa: F401 (a fixture: the XM430-W350 build)
 from uavarm.calibrate import servo_zero
 from uavarm.calibrate.fit import CalibrationError
 from uavarm.link import ArmLink
@@ -161,19 +162,20 @@ class User:
         return True                    # write it; and write an unusual one all the same
 
 
-def bench(**options):
-    """A SITL whose servos are mounted as TRUTH, the arm disabled (as after power-up), every
+def bench(truth=TRUTH, **options):
+    """A SITL whose servos are mounted as truth, the arm disabled (as after power-up), every
     shaft position recorded; and a link to it."""
-    s = run_sitl(servo_truth=TRUTH, **options)
+    s = run_sitl(servo_truth=truth, **options)
     s.board.shaft_trace = []
     return s, ArmLink(s.device, clock=s.clock)
 
 
-def least_clearance(s) -> float:
-    """The least clearance (mm, plain geometry) of the arm's true poses while powered."""
+def least_clearance(s, m=None, truth=TRUTH) -> float:
+    """The least clearance (mm, plain geometry) of the arm's true poses while powered: each
+    shaft's position in the units of the model m's servo (the committed file's if None)."""
     rows = np.array([r[2:5] for r in s.board.shaft_trace if r[1]], dtype=float)
-    m = config.load()
-    zero, direction = (np.array(v, float) for v in TRUTH)
+    m = m or config.load()
+    zero, direction = (np.array(v, float) for v in truth)
     q = direction * (rows - zero) * math.radians(m.servo_range_deg) / m.servo_units_max
     return float(oracles.clearance_mm(m, q).min())
 
@@ -301,3 +303,71 @@ def test_the_command_line_will_not_answer_the_servo_calibrations_questions(tmp_p
     from uavarm import cli
     assert cli.main(["calibrate", "servos", "/dev/no-such-port", "--yes"]) == 2
     assert "--yes is not for `uavarm calibrate servos`" in capsys.readouterr().err
+
+
+# ---------------------------------------------------------------- an X-series arm
+
+# The same servos' mounting as TRUTH's, in XM430-W350 units (4096 a turn, 2048 the centre):
+# each zero the same angle off the centre as there.
+X_TRUTH_ZERO = (2061, 1998, 2025)
+X_TRUTH = (X_TRUTH_ZERO, TRUTH_DIRECTION)
+
+
+@pytest.fixture
+def xm430_lab(tmp_path, xm430):
+    """(model file as a lab has it before its first servo calibration, SITL options): an
+    XM430-W350 arm, every zero at the centre, joint 2's servo stated as mounted the other way
+    round (as it is), served by the XM430-W350 build."""
+    model, ffi, lib = xm430
+    text = model.path.read_text()
+    joint2 = "[servo.theta2]\nid = 2\nzero = 2048\ndirection = 1"
+    assert joint2 in text
+    path = tmp_path / "manipulator.toml"
+    path.write_text(text.replace(joint2, joint2[:-1] + "-1"))
+    return path, dict(model=model, lib=(ffi, lib))
+
+
+@realtime
+def test_an_xm430_arm_is_calibrated_with_the_verification_move(xm430_lab, capsys):
+    """As for the AX-12A: jogs of 6 deg (68 units), the zeros in 4096 units a turn, and the
+    load checks read the XM430-W350's Present Current (the firmware's load word): its sense is
+    gravity's at both load poses, and no shaft is ever in the body or a leg."""
+    lab, options = xm430_lab
+    s, arm = bench(X_TRUTH, **options)
+    user = User(s, config.load(lab))
+    try:
+        assert servo_zero.servos(arm, lab, user.ask, user.confirm, seconds=SECONDS)
+    finally:
+        arm.close()
+        s.stop()
+    m = config.load(lab)
+    assert [sv.zero for sv in m.servos] == list(X_TRUTH_ZERO)
+    assert [sv.direction for sv in m.servos] == list(TRUTH_DIRECTION)
+    out = capsys.readouterr().out
+    loads = [line.strip() for line in out.splitlines() if "holds against gravity the way direction" in line]
+    least = least_clearance(s, m, X_TRUTH)
+    with capsys.disabled():
+        print("\n" + "\n".join(loads) + f"\nleast clearance of the shafts: {least:.1f} mm")
+    assert len(loads) == 2, out
+    assert least > 0.0
+
+
+@realtime
+def test_an_xm430_joint_answered_the_wrong_way_is_caught_by_its_present_current(xm430_lab):
+    """Joint 3's jog answered the wrong way and every pose said yes to: the Present Current
+    at the forearm-level pose pushes the other way than that direction says; nothing written."""
+    lab, options = xm430_lab
+    before = lab.read_bytes()
+    s, arm = bench(X_TRUTH, **options)
+    user = User(s, config.load(lab), wrong=3, careless=True)
+    try:
+        with pytest.raises(CalibrationError, match=r"servo holds the arm pushing .* direction of joint 2 or of "
+                                                   r"joint 3 is wrong"):
+            servo_zero.servos(arm, lab, user.ask, user.confirm, seconds=SECONDS, allow_unusual=True)
+        end = arm.next_heartbeat()
+    finally:
+        arm.close()
+        s.stop()
+    assert lab.read_bytes() == before
+    assert end["enabled"] == 0
+    assert least_clearance(s, config.load(lab), X_TRUTH) > 0.0

@@ -199,16 +199,6 @@ def test_the_sitl_serves_an_xm430_arm_to_the_link_client(xm430):
         sitl.stop()
 
 
-def test_the_servo_calibration_refuses_an_x_series_arm_before_touching_it(xm430):
-    """It reads the AX-12A's Present Load word to tell a direction: on an XM430's Present
-    Current that would be a wrong answer, so it stops first, naming the servo."""
-    from uavarm.calibrate import servo_zero
-    from uavarm.calibrate.fit import CalibrationError
-    untouchable = object()            # any use of the arm raises AttributeError, not the refusal
-    with pytest.raises(CalibrationError, match="servo.model is XM430-W350"):
-        servo_zero.servos(untouchable, xm430[0].path, ask=None, confirm=None)
-
-
 def test_an_xm430_holding_the_arm_reads_the_current_its_weight_asks(xm430):
     """Level, engaged at a set position: each of joints 2 and 3 reads the Present Current that
     holds its share of the arm's weight. Oracle: planar statics with the model file's masses

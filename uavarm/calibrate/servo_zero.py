@@ -12,7 +12,8 @@ checked on the arm before anything is written.
 4. The verification move: with the new zeros and directions the arm goes slowly (jogs at the
    park speed) through VERIFY's poses, each told in plain words; any "no" discards the result.
    Where gravity pulls hard on a joint that sits near its zero, the sign of its servo's
-   Present Load must be the one the new direction predicts (a load too small to tell is said).
+   load (Present Load; an XM430-W350's Present Current) must be the one the new direction
+   predicts (a load too small to tell is said).
 5. The arm comes back to the zero pose (where it hangs, verified; after a failed check the user
    holds it first) and the torque and the servo supply go off: the new values are flown only
    once written, regenerated and flashed.
@@ -44,17 +45,20 @@ DIRECTION_QUESTIONS = (
     "Did joint 2 swing the arm forward (towards the drone's front, +x)?",
     "Did joint 3 swing the forearm forward (towards +x)?",
 )
-JOG_UNITS = 20                     # about 6 deg: enough to see, small enough to be harmless
-SERVO_SPREAD_UNITS = 2             # a still joint's readings stay within this
+JOG_DEG = 6.0                      # enough to see, small enough to be harmless (AX-12A: 20 units)
+SPREAD_DEG = 0.6                   # a still joint's readings stay within this (AX-12A: 2 units)
 # A zero this far from the model file's is not a careful calibration's refinement of it (a
 # servo remounted a spline over is 360/25 = 14.4 deg off; a pose held by eye is within 3).
 ZERO_WINDOW_DEG = 15.0
 # The verification route stays clear with every zero off by this much (beyond the window, for
 # a result the user allowed) and any direction the wrong way round.
 ROUTE_SAFE_DEG = 25.0
-# A Present Load this small (AX-12A units: 1023 is the servo's full torque) says nothing of
-# its direction: a holding servo's reading wanders by a few units.
-LOAD_MIN_UNITS = 8
+# A load this small (N m) says nothing of its direction: a holding AX-12A's reading wanders by
+# a few units (8 units of its 1023 are 0.0117 N m). The firmware streams every servo's load as
+# the AX-12A's Present Load word (bit 10 the sense), in the servo's own units: 8 of an
+# XL430-W250's Present Load, 3 of an XM430-W350's Present Current (whose 4.1 N m stall makes
+# this light arm's loads 5 or 6 units of 2.69 mA).
+LOAD_MIN_NM = 0.0117
 ARRIVE_S = 20.0                    # the slowest verification jog at park speed takes 1.5 s
 
 
@@ -120,8 +124,9 @@ def holding_sign(m: config.Model, pose: Pose) -> int:
 
 
 def load_sense(load: int) -> tuple[int, int]:
-    """An AX-12A Present Load word as (sense in servo units: +1 the way its position grows
-    (counter-clockwise, bit 10 clear), -1 the other; magnitude 0-1023)."""
+    """A load word as the AX-12A's Present Load reads, and as the firmware streams any servo's
+    (sense in servo units: +1 the way its position grows (counter-clockwise, bit 10 clear), -1
+    the other; magnitude 0-1023)."""
     return (-1 if load & 0x400 else 1), load & 0x3FF
 
 
@@ -158,8 +163,9 @@ def _state(hb: dict) -> str:
     return messages.STATES[hb["state"]][0]
 
 
-def _zero_pose_units(arm, ask, seconds: float) -> list[int]:
+def _zero_pose_units(arm, m: config.Model, ask, seconds: float) -> list[int]:
     """Each servo's position (units) while the user holds the arm at the zero pose."""
+    still = int(SPREAD_DEG * _units_per_deg(m))
     for attempt in range(TRIES):
         ask_reading(arm, ask, ZERO_POSE)
         frames = arm.collect("servo_status", seconds)
@@ -169,9 +175,9 @@ def _zero_pose_units(arm, ask, seconds: float) -> list[int]:
             raise CalibrationError(f"no readings from the servo of joint(s) {missing}: is it connected and "
                                    "configured (heartbeat servo_timeout)?")
         spread = [max(v) - min(v) for v in by_servo]
-        if max(spread) <= SERVO_SPREAD_UNITS:
+        if max(spread) <= still:
             return [round(float(np.mean(v))) for v in by_servo]
-        message = (f"the arm moved (joint readings spread {spread} units, still is <= {SERVO_SPREAD_UNITS}): "
+        message = (f"the arm moved (joint readings spread {spread} units, still is <= {still}): "
                    "hold it still and take the pose again")
         if attempt == TRIES - 1:
             raise CalibrationError(message)
@@ -248,10 +254,11 @@ def _check_load(arm, m: config.Model, pose: Pose, directions) -> None:
     j = pose.load_joint
     want = holding_sign(m, pose) * directions[j - 1]
     sense, size = load_sense(_latest(arm, "load")[j - 1])
+    least = math.ceil(LOAD_MIN_NM / m.servo_model.load_unit_nm)
     if want == 0:
         print(f"  at {list(pose.q_deg)} deg gravity hardly turns joint {j}: its direction is taken from your answer")
         return
-    if size < LOAD_MIN_UNITS:
+    if size < least:
         print(f"  joint {j}'s servo holds {size} units of load at {list(pose.q_deg)} deg: too little to tell its "
               "direction; taken from your answer")
         return
@@ -302,10 +309,7 @@ def _powered_limp(arm, ask) -> None:
 def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0, allow_unusual: bool = False) -> bool:
     """Zeros and directions, a verification move, then the model file (see the module's text)."""
     m = config.load(model_path)
-    if m.servo_model.protocol != 1:
-        raise CalibrationError(f"servo.model is {m.servo_model.name}: this calibration reads the AX-12A's Present "
-                               "Load and jogs in its units, not yet an X-series servo's; set the zeros and directions "
-                               "in the model file by hand")
+    jog = round(JOG_DEG * _units_per_deg(m))
     why = unsafe_on_route(m)
     if why:
         raise CalibrationError(f"this model's verification poses are not safe with a calibration that is off: {why}")
@@ -313,13 +317,13 @@ def servos(arm, model_path: Path, ask, confirm, seconds: float = 1.0, allow_unus
     with arm.kept_alive():
         arm.stream(servos=True)
         try:
-            units = _zero_pose_units(arm, ask, seconds)
+            units = _zero_pose_units(arm, m, ask, seconds)
             arm.torque(True)                  # held where the hands left it
             directions = []
             for j, question in enumerate(DIRECTION_QUESTIONS, 1):
-                arm.jog(j, units=JOG_UNITS)
+                arm.jog(j, units=jog)
                 directions.append(1 if ask_reading(arm, confirm, question) else -1)
-                arm.jog(j, units=-JOG_UNITS)
+                arm.jog(j, units=-jog)
             for j, (u, d, s) in enumerate(zip(units, directions, m.servos), 1):
                 print(f"joint {j}: zero {u} units (was {s.zero}), direction {d:+d} (was {s.direction:+d})")
             plausible.settle(_departures(m, units, directions), allow_unusual, confirm)

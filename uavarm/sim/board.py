@@ -162,8 +162,9 @@ def servo_truth_of(model, truth) -> tuple[tuple[float, ...], tuple[int, ...]]:
         raise ValueError(f"servo truth {truth!r}: use ((ZERO, ZERO, ZERO), (DIR, DIR, DIR))") from None
     n = len(model.servos)
     if len(zeros) != n or len(directions) != n or not all(d in (1, -1) for d in directions) \
-            or not all(0 <= z <= 1023 for z in zeros):
-        raise ValueError(f"servo truth {truth!r}: {n} zeros in servo units (0 to 1023) and {n} directions (1 or -1)")
+            or not all(0 <= z <= model.servo_units_max for z in zeros):
+        raise ValueError(f"servo truth {truth!r}: {n} zeros in servo units (0 to {model.servo_units_max}) and {n} "
+                         "directions (1 or -1)")
     return zeros, directions
 
 

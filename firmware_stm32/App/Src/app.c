@@ -204,9 +204,11 @@ static bool jog_pose(const app_t *app, const msg_jog_t *m, float q[3])
     if (m->mode == 0u) {
         q[j] = m->value;
     } else {
-        if (!(fabsf(m->value) <= 1023.0f) || !servo_joints_to_units(q, units)) return false;
+        /* (the servo's own units: 0..1023 on an AX-12A, 0..4095 on an X-series servo) */
+        const float units_max = (float)MODEL_DXL_POSITION_MAX;
+        if (!(fabsf(m->value) <= units_max) || !servo_joints_to_units(q, units)) return false;
         const float goal = (float)units[j] + roundf(m->value);
-        if (goal < 0.0f || goal > 1023.0f) return false;
+        if (goal < 0.0f || goal > units_max) return false;
         units[j] = (uint16_t)goal;
         servo_units_to_joints(units, q);
     }
