@@ -285,6 +285,8 @@ def estimator_context(m: config.Model):
                                qh_c + vec("v_level") + vec("rate") + vec("v_hist"), prefix="i")
     vel_along = _function([(f"r[{i}]", v) for i, v in enumerate(velocity.along_up())], QH + velocity.INNOV,
                           qh_c + vec("e"), prefix="a")
+    tilt_bias = _function([(f"r[{i}]", v) for i, v in enumerate(velocity.tilt_as_bias())], QH + quaternion.ERR,
+                          qh_c + vec("err"), prefix="b")
     accel_bias_up = _function([(f"bias[{i}]", v) for i, v in enumerate(velocity.accel_bias_update(m))],
                               velocity.ACC_BIAS + velocity.ALONG + (velocity.K_A,), vec("bias") + vec("r") + ["k_a"])
     quat_turn = _function([(f"const float r{i}", v) for i, v in enumerate(velocity.turned())], Q + velocity.TURN,
@@ -307,6 +309,7 @@ def estimator_context(m: config.Model):
         "vel_predict": vel_predict,
         "vel_innovation": vel_innovation,
         "vel_along": vel_along,
+        "vel_tilt_bias": tilt_bias,
         "accel_bias_update": accel_bias_up,
         "quat_turn": quat_turn,
         "bias_update": bias_up,
@@ -459,6 +462,7 @@ def estimator_params(m: config.Model):
         "link_bias_gain_with_velocity": float32_literal(e.link_bias_gain_with_velocity),
         "fc_error_gain": float32_literal(e.fc_error_gain),
         "fc_error_max": float32_literal(sp.rad(sp.nsimplify(e.fc_error_max_deg, rational=True))),
+        "accel_bias_attitude_gain": float32_literal(e.accel_bias_attitude_gain),
         **gate_params(e),
         # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
         "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)

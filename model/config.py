@@ -70,8 +70,9 @@ _KEYS_BY_TABLE = {
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
                  "link_bias_gain link_delay_min link_delay_max link_timeout lead_time drone_velocity "
                  "velocity_bandwidth link_gain_with_velocity link_bias_gain_with_velocity fc_error_gain "
-                 "fc_error_max_deg accel_bias_bandwidth accel_bias_max_g gate_sigmas drone_attitude_noise_deg "
-                 "drone_velocity_noise drift_dps drift_max_deg reject_after retake_after correction_max_deg",
+                 "fc_error_max_deg accel_bias_attitude_gain accel_bias_bandwidth accel_bias_max_g gate_sigmas "
+                 "drone_attitude_noise_deg drone_velocity_noise drift_dps drift_max_deg reject_after retake_after "
+                 "correction_max_deg",
 }
 UNKNOWN_KEYS_NAMED = 5
 GATE_WIDEST_DEG = 45.0        # the drone-attitude gate at its widest (deg)
@@ -244,6 +245,7 @@ class Estimator:
     link_bias_gain_with_velocity: float  # link_bias_gain while the velocity is fresh too
     fc_error_gain: float           # 1/s: the flight controller's error learnt from its disagreement
     fc_error_max_deg: float        # deg: the clamp of the flight controller's estimated error
+    accel_bias_attitude_gain: float  # 1/s: the tilt and the accelerometer's bias moved towards the drone's attitude
     accel_bias_bandwidth: float    # rad/s: the accelerometer's bias learnt along up (0: not learnt)
     accel_bias_max_g: float        # g: the clamp of its estimate
     gate_sigmas: float             # a drone message is refused beyond this many expected spreads
@@ -650,6 +652,7 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
                                               hi=sample_rate / 2),
         fc_error_gain=r.number(k + "fc_error_gain", nonnegative=True, hi=10.0),
         fc_error_max_deg=r.number(k + "fc_error_max_deg", nonnegative=True, hi=10.0),
+        accel_bias_attitude_gain=r.number(k + "accel_bias_attitude_gain", nonnegative=True, hi=10.0),
         accel_bias_bandwidth=r.number(k + "accel_bias_bandwidth", nonnegative=True, hi=5.0),
         accel_bias_max_g=r.number(k + "accel_bias_max_g", positive=True, hi=0.5),
         # the gate: under 1 sigma refuses honest data, over 20 takes 20 deg lies

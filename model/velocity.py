@@ -19,15 +19,16 @@ and corrects, over the time h since the previous message (gains per second):
     v <- v + k_v h e                 (v and its history)
     q <- normalise(q (x) (1, k_t h turn / 2))         (a small body-axes rotation)
     bias <- bias - k_b h turn
-    with the drone's attitude fused: fc_error <- fc_error - k_t h turn
+    with the drone's attitude fused, not split (below): fc_error <- fc_error - k_t h turn
 
 With the drone's attitude fused each of its messages compares the estimate with the flight
 controller's up corrected by the estimate of its error, u_fc + fc_error x u_fc (quaternion.py
 link_error). While the velocity is fresh that comparison corrects with gains of its own
 (link_gain_with_velocity, 0 in the committed model: the gyro between velocity corrections
 does better, docs/simulator.md) and moves fc_error by what is left (fc_error_gain per
-second); the turn above moves fc_error too, so the two stay agreed. When the velocity stops,
-the flight controller's attitude corrects at link_gain, its learnt error removed.
+second); not split, the turn above moves fc_error too, so the two stay agreed. When the
+velocity stops, the flight controller's attitude corrects at link_gain, its learnt error
+removed.
 
 Gains from one bandwidth w_n (rad/s): pole placement on the small-angle error dynamics per
 axis (e_v' = G d - k_v e_v, d' = -k_t e_v - b, b' = k_b e_v, with d the tilt error and b the
@@ -45,6 +46,24 @@ reach; the tilt error it left is then taken back by the loop above:
 
 Gains from the bandwidth w_a along up (e_u' = -G b_u - k_u e_u, b_u' = k_a e_u): a double
 pole at -w_a, k_u = 2 w_a, k_a = w_a^2 / G (g per m/s per s); w_a = 0 leaves the bias at 0.
+
+Across up, the bias is learnt from the drone's attitude. With the velocity fused, the loop
+above holds the estimate's up where the specific force less the bias estimate points,
+u = a - b_a: any error of b_a across up is a tilt error the velocity cannot see. The drone's
+attitude sees it, beside its own slowly varying error, and the two cannot be told apart at
+one attitude: each of its messages in flight (err = u_fc x u_h, quaternion.link_error, over
+the time h since the previous one) moves fc_error towards the estimate at fc_error_gain (k_f)
+and the estimate towards the flight controller's up at accel_bias_attitude_gain (k_d), the
+bias with it so that a - b_a - u, all the velocity loop sees, is unchanged (fc_error is then
+the flight controller's error alone: the velocity's turns leave it; not engaged, nothing is
+learnt, as the arm at rest is levelled on the accelerometer as it reads, bias and all):
+
+    q <- normalise(q (x) (1, k_d h err / 2))     u moves by k_d h (u_fc - u_h)
+    b_a <- b_a - k_d h (u_h x err)               b_a moves by -k_d h (u_fc - u_h)
+
+With the flight controller's error e_f and the bias's tilt e_b (the velocity's alone) the
+disagreement closes at k_f + k_d per second, leaving the tilt error (k_f e_b + k_d e_f) /
+(k_f + k_d): the two errors weighed by the gains (equal gains: their mean).
 """
 from __future__ import annotations
 
@@ -52,7 +71,7 @@ import sympy as sp
 
 from .attitude import ACC, DT, mounting
 from .config import Model
-from .quaternion import FC_ERROR, Q, QH, RATE, UP, _clamp, _normalised, qmul, tilt_transpose, up_of
+from .quaternion import ERR, FC_ERROR, Q, QH, RATE, UP, _clamp, _normalised, qmul, tilt_transpose, up_of
 
 G = sp.Float("9.80665", 40)                         # standard gravity, m/s^2 (the accelerometer's g)
 VEL = sp.symbols("vx vy vz", real=True)             # the estimate, base axes, m/s
@@ -87,6 +106,12 @@ def along_up():
     u_h = up_of(QH)
     along = u_h.dot(sp.Matrix(INNOV))
     return [along * c for c in u_h]
+
+
+def tilt_as_bias():
+    """r (3) = u_h x ERR, u_h the up direction of QH (unit): for a small ERR
+    (quaternion.link_error's), u_fc - u_h, the move of up that the drone's attitude asks for."""
+    return list(up_of(QH).cross(sp.Matrix(ERR)))
 
 
 def accel_bias_update(m: Model):

@@ -44,6 +44,14 @@ def link_only():
     return v.ffi, v.lib
 
 
+@pytest.fixture(scope="module")
+def not_split():
+    """The committed model with the whole disagreement of the two sources taken as the flight
+    controller's error (accel_bias_attitude_gain 0)."""
+    v = variants.build({"estimator.accel_bias_attitude_gain": 0.0})
+    return v.ffi, v.lib
+
+
 def test_committed_model_fuses_attitude_and_velocity():
     assert MODEL.estimator.drone_attitude and MODEL.estimator.drone_velocity
     assert MODEL.imu_mounting_rpy_deg == (0.0, 0.0, 0.0)   # IMU axes are base axes below
@@ -63,6 +71,7 @@ def test_generated_velocity_functions_match_the_sympy_model(fw):
     innovation = sympy_at_30_digits(e_model + turn_model)
     turned = sympy_at_30_digits(list(velocity.turned()))
     along_up = sympy_at_30_digits(velocity.along_up())
+    tilt_as_bias = sympy_at_30_digits(velocity.tilt_as_bias())
     accel_bias_update = sympy_at_30_digits(velocity.accel_bias_update(MODEL))
     corr, err = quaternion.link_error()
     link = sympy_at_30_digits(list(corr) + list(err))
@@ -97,6 +106,9 @@ def test_generated_velocity_functions_match_the_sympy_model(fw):
         e[0:3] = vals["e"].tolist()
         lib.est_vel_along_up(q, e, along)
         want = along_up(dict(zip(quaternion.QH, qh)) | dict(zip(velocity.INNOV, vals["e"])))
+        assert max(abs(a - b) for a, b in zip(list(along), want)) <= 16 * EPS32 * 2, (k, list(along), want)
+        lib.est_vel_tilt_as_bias(q, e, along)
+        want = tilt_as_bias(dict(zip(quaternion.QH, qh)) | dict(zip(quaternion.ERR, vals["e"])))
         assert max(abs(a - b) for a, b in zip(list(along), want)) <= 16 * EPS32 * 2, (k, list(along), want)
         k_a = np.float32(rng.uniform(0, 2))   # large enough that the clamp is reached too
         acc_bias[0:3] = vals["acc_bias"].tolist()
@@ -298,13 +310,13 @@ def test_velocity_holds_the_tilt_in_accelerated_flight(imu_velocity, fw):
     assert alone.errors[-1] > 5.0
 
 
-def test_the_flight_controllers_slow_error_is_learnt(fw, link_only):
-    """The drone's attitude off by (+0.8, -0.5) deg, its velocity true: with velocity the
-    estimate finds the truth (< 0.05 deg after 60 s; the first messages, before the velocity is
-    fresh, pull it to the flight controller's) and fc_error the flight controller's error; with
-    the attitude alone the estimate keeps the error."""
+def test_the_flight_controllers_slow_error_is_learnt(not_split, link_only):
+    """The drone's attitude off by (+0.8, -0.5) deg, its velocity true, not split: with
+    velocity the estimate finds the truth (< 0.05 deg after 60 s; the first messages, before
+    the velocity is fresh, pull it to the flight controller's) and fc_error the flight
+    controller's error; with the attitude alone the estimate keeps the error."""
     err = np.radians([0.8, -0.5])
-    both = Run(fw, Flight(still, at_rest)).run(60.0, attitude_error=err)
+    both = Run(not_split, Flight(still, at_rest)).run(60.0, attitude_error=err)
     alone = Run(link_only, Flight(still, at_rest)).run(60.0, attitude_error=err, send_velocity=False)
     print(f"\nflight controller off by 0.8/-0.5 deg: error with velocity {both.errors[-1]:.4f} deg, "
           f"without {alone.errors[-1]:.3f} deg; fc_error {np.degrees(list(both.s.fc_error))} deg")
@@ -314,13 +326,60 @@ def test_the_flight_controllers_slow_error_is_learnt(fw, link_only):
     assert np.allclose(np.degrees(list(both.s.fc_error)), [0.8, -0.5, 0.0], atol=0.02)
 
 
-def test_the_flight_controllers_learnt_error_is_clamped_at_fc_error_max(fw):
+def split_share() -> float:
+    """k_d / (k_d + k_f): the share of the two sources' disagreement by which the estimate
+    moves towards the flight controller (velocity.py), from the model file's gains."""
+    e = MODEL.estimator
+    return e.accel_bias_attitude_gain / (e.accel_bias_attitude_gain + e.fc_error_gain)
+
+
+def test_split_the_flight_controllers_error_is_weighed_by_the_gains(fw):
+    """Still, the drone's attitude off by (+0.8, -0.5) deg, its velocity true, no bias: the
+    estimate ends off by the share k_d / (k_d + k_f) of that error, and fc_error holds the
+    rest (the two sources' errors weighed by the model file's gains)."""
+    err = np.radians([0.8, -0.5])
+    run = Run(fw, Flight(still, at_rest)).run(60.0, attitude_error=err)
+    share = split_share()
+    assert 0.0 < share < 1.0
+    assert abs(run.errors[-1] - share * math.degrees(np.hypot(*err))) < 0.02, run.errors[-1]
+    assert np.allclose(np.degrees(list(run.s.fc_error))[:2], (1 - share) * np.degrees(err), atol=0.02)
+
+
+BIAS_G = np.array([0.015, -0.015, 0.0])   # 15 mg on x and on y: across up when level
+
+
+@pytest.mark.parametrize("motion", ["still", "swaying"])
+def test_split_an_accelerometer_bias_is_learnt_from_the_drones_attitude(fw, motion):
+    """The accelerometer 15 mg off on x and on y (1.22 deg of tilt), the drone's attitude and
+    velocity true, from power-up: still on a bench, the bias estimate across up converges on
+    the share k_d / (k_d + k_f) of the bias on both axes, within 1 mg from 45 s on, and the
+    tilt error left is the rest of the bias's. Swaying along x (the tilt swinging +-17 deg
+    about y), the drift along up teaches x's bias in full; y's, never swept, again the share."""
+    flight = Flight(still, at_rest) if motion == "still" else swaying()
+    run = Run(fw, flight, accel_bias=BIAS_G)
+    share = split_share()
+    want = share * BIAS_G[:2] if motion == "still" else np.array([BIAS_G[0], share * BIAS_G[1]])
+    learnt = []
+    for _ in range(50):
+        run.run(1.0, attitude_error=(0.0, 0.0))
+        learnt.append(np.array(list(run.s.velocity.accel_bias))[:2])
+    off = [np.abs(b - want).max() for b in learnt]
+    settled = next((i + 1 for i in range(len(off)) if max(off[i:]) < 1e-3), None)
+    print(f"\n{motion}: bias across up learnt {np.round(learnt[-1] * 1e3, 2)} mg, want {np.round(want * 1e3, 2)} "
+          f"(share {share:.2f}); within 1 mg from {settled} s on; tilt error {run.errors[-1]:.3f} deg")
+    assert max(off[44:]) < 1e-3, np.round(np.array(learnt) * 1e3, 2)
+    if motion == "still":
+        bias_tilt = math.degrees(math.atan(np.hypot(*BIAS_G[:2])))
+        assert abs(run.rms(5.0) - (1 - share) * bias_tilt) < 0.1 * bias_tilt, run.rms(5.0)
+
+
+def test_the_flight_controllers_learnt_error_is_clamped_at_fc_error_max(not_split):
     """The drone's attitude off by (+4, -2) deg, its velocity true: fc_error learns the roll
     error up to fc_error_max_deg (3) (each velocity message's turn then moves it a hair back
     inside); no axis passes the clamp (the pitch, inside it, is learnt to within what the roll
     left unlearnt turns it by)."""
     err = np.radians([4.0, -2.0])
-    run = Run(fw, Flight(still, at_rest)).run(40.0, attitude_error=err)
+    run = Run(not_split, Flight(still, at_rest)).run(40.0, attitude_error=err)
     limit = np.float32(math.radians(MODEL.estimator.fc_error_max_deg))
     got = np.array(list(run.s.fc_error), dtype=np.float32)
     assert limit - np.float32(math.radians(0.01)) <= got[0] <= limit and np.abs(got).max() <= limit, np.degrees(got)
@@ -338,7 +397,8 @@ def test_the_velocitys_turns_carry_the_flight_controllers_error_along():
     """With the flight controller pulling while the velocity is fresh (link_gain_with_velocity
     0.5) and no learning of its own (fc_error_gain 0), only the velocity's turns move fc_error:
     the two agree when it holds the flight controller's error, (+0.8, -0.5) deg."""
-    v = variants.build({"estimator.fc_error_gain": 0.0, "estimator.link_gain_with_velocity": 0.5})
+    v = variants.build({"estimator.fc_error_gain": 0.0, "estimator.link_gain_with_velocity": 0.5,
+                        "estimator.accel_bias_attitude_gain": 0.0})
     run = Run((v.ffi, v.lib), Flight(still, at_rest)).run(60.0, attitude_error=np.radians([0.8, -0.5]))
     assert run.errors[-1] < 0.05
     assert np.allclose(np.degrees(list(run.s.fc_error)), [0.8, -0.5, 0.0], atol=0.05)
@@ -357,14 +417,16 @@ def off_message(run, offset=(0.3, -0.2, 0.0)):
     return status, (before.inv() * as_rotation(s.quat.q)).as_rotvec()
 
 
-def test_a_velocity_turn_moves_the_history_the_up_direction_and_the_flight_controllers_error(fw):
+@pytest.mark.parametrize("split", [True, False], ids=["split", "not split"])
+def test_a_velocity_turn_moves_the_history_the_up_direction_and_the_flight_controllers_error(fw, not_split, split):
     """Swaying with both streams fresh, at the sway's largest tilt (17 deg), a message 0.3 m/s
     off the truth turns the estimate by a small body-axes rotation d. Every filled slot of the
     history turns by the same d (the next message is compared with an estimate that has taken
     this one's correction): each slot is its previous self turned by d in its own axes; the
-    up direction is the turned estimate's; the flight controller's learnt error moves by -d
-    on every axis (its next message agrees). To float32 precision."""
-    run = Run(fw, swaying()).run(3.5, attitude_error=(0.0, 0.0))
+    up direction is the turned estimate's. Not split, the flight controller's learnt error
+    moves by -d on every axis (its next message agrees); split (the committed model), it is
+    the flight controller's own error, which the turn leaves. To float32 precision."""
+    run = Run(fw if split else not_split, swaying()).run(3.5, attitude_error=(0.0, 0.0))
     s = run.s
     up_of = lambda q: as_rotation(q).inv().apply([0.0, 0.0, 1.0])   # the level frame's z in base axes
     assert np.abs(np.array(list(s.up)) - up_of(s.quat.q)).max() < 1e-6
@@ -375,7 +437,7 @@ def test_a_velocity_turn_moves_the_history_the_up_direction_and_the_flight_contr
     for n, slot in enumerate(slots):
         assert ((slot * Rotation.from_rotvec(d)).inv() * as_rotation(s.hist_q[n])).magnitude() < 4e-6, n
     assert np.abs(np.array(list(s.up)) - up_of(s.quat.q)).max() < 1e-6
-    assert np.abs(np.array(list(s.fc_error)) - (fc_error - d)).max() < 1e-7
+    assert np.abs(np.array(list(s.fc_error)) - (fc_error if split else fc_error - d)).max() < 1e-7
 
 
 def test_one_message_moves_the_velocity_and_the_bias_by_the_documented_gains(imu_velocity):
@@ -409,15 +471,20 @@ def test_without_the_drones_attitude_its_learnt_error_is_kept(fw):
     assert status == 0 and np.linalg.norm(d) > 5e-5 and list(run.s.fc_error) == kept
 
 
-def test_when_the_velocity_stops_the_learnt_error_keeps_the_estimate(fw):
+@pytest.mark.parametrize("split", [True, False], ids=["split", "not split"])
+def test_when_the_velocity_stops_the_learnt_error_keeps_the_estimate(fw, not_split, split):
     """After 60 s of both streams with the flight controller off by (+0.8, -0.5) deg, the
     velocity stops: its attitude corrects at the full link_gain again, less fc_error, so the
-    estimate stays within 0.05 deg of the truth instead of jumping to the 0.94 deg error."""
+    estimate stays within 0.05 deg of where the two agreed (not split: the truth; split: the
+    share k_d / (k_d + k_f) of the way to the flight controller, above) instead of jumping to
+    the 0.94 deg error."""
     err = np.radians([0.8, -0.5])
-    run = Run(fw, Flight(still, at_rest)).run(60.0, attitude_error=err)
+    run = Run(fw if split else not_split, Flight(still, at_rest)).run(60.0, attitude_error=err)
+    agreed = run.errors[-1]
     run.run(10.0, attitude_error=err, send_velocity=False)
     assert not run.lib.stab_velocity_fresh(run.s, run.t_us) and run.lib.stab_link_fresh(run.s, run.t_us)
-    assert max(run.errors[-1000:]) < 0.05, max(run.errors[-1000:])
+    assert max(abs(e - agreed) for e in run.errors[-1000:]) < 0.05, (agreed, max(run.errors[-1000:]))
+    assert abs(agreed - (split_share() * math.degrees(np.hypot(*err)) if split else 0.0)) < 0.05, agreed
 
 
 def test_bad_velocity_messages_are_refused_counted_and_change_nothing(fw):

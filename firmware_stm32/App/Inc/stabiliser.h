@@ -68,6 +68,7 @@ typedef struct {
     float up[3];                   /* the estimate's up direction, base axes */
     float rate[3];                 /* body rate for the lead, base axes, rad/s */
     bool started;                  /* a first sample has set filters and attitude */
+    bool engaged;                  /* the last sample's: the arm holds a set position */
     bool accel_idle;               /* the accelerometer's filter was left while the drone's messages corrected */
     uint32_t samples;              /* samples taken since the reset (saturates) */
     uint32_t last_sample_us;       /* when the previous one was taken */

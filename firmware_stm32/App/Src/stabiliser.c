@@ -154,6 +154,7 @@ void stab_sample(stab_t *s, const float accel_g[3], const float gyro_rad_s[3], u
     if (!s->started) start(s, accel_g, gyro_rad_s);
     if (s->samples < UINT32_MAX) s->samples++;
     const float dt = sample_dt(s, now_us);
+    s->engaged = engaged;
 #if MODEL_ESTIMATOR_QUATERNION
     if (engaged) s->still_n = 0u;   /* a window starts afresh after a flight */
     else bias_at_rest(s, accel_g, gyro_rad_s);
@@ -342,6 +343,12 @@ static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
     return why;
 }
 
+/* The disagreement of the drone's attitude with the estimate, while the velocity is fused, is
+ * split between the flight controller's error (fc_error, its own estimate then, which the
+ * velocity's turns leave alone) and the accelerometer's bias; or, with no gain for the bias,
+ * all of it the flight controller's (fc_error following every turn of the estimate). */
+#define SPLIT (MODEL_ACCEL_BIAS_ATTITUDE_GAIN > 0.0f)
+
 /* fc_error += delta, within +-fc_error_max_deg per axis. */
 static void move_fc_error(stab_t *s, const float delta[3])
 {
@@ -398,13 +405,27 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
     /* the error left after each correction is (bias error) x (message period) / link_gain, so
      * this moves the bias at link_bias_gain / link_gain per second, whatever the message rate */
     est_bias_update(s->quat.bias, err, aided ? MODEL_LINK_BIAS_GAIN_WITH_VELOCITY : MODEL_LINK_BIAS_GAIN);
-    if (aided && fresh) {
-        /* err x u_fc is how far the corrected up of the flight controller is off: fc_error
-         * moves by err to close it, at fc_error_gain per second of the drone's time */
+    if (aided && fresh && (!SPLIT || s->engaged)) {
+        /* What is left of the disagreement (err) is the flight controller's slowly varying
+         * error or, split, also the accelerometer's bias across up (velocity.py): fc_error
+         * moves towards the estimate at fc_error_gain and, split, the estimate towards the
+         * flight controller at accel_bias_attitude_gain, with the bias that holds it there (the
+         * velocity keeps agreeing); per second of the drone's time. Split, only in flight: the
+         * arm at rest is levelled on the accelerometer as it reads, bias and all, which would
+         * leave the whole disagreement to fc_error. */
         const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
-        float learn[3];
-        for (int i = 0; i < 3; ++i) learn[i] = h * MODEL_FC_ERROR_GAIN * err[i];
+        float learn[3], turn[3], across[3];
+        for (int i = 0; i < 3; ++i) {
+            learn[i] = h * MODEL_FC_ERROR_GAIN * err[i];
+            turn[i] = h * MODEL_ACCEL_BIAS_ATTITUDE_GAIN * err[i];
+        }
         move_fc_error(s, learn);
+        if (SPLIT) {
+            est_vel_tilt_as_bias(q_then, err, across);
+            est_accel_bias_update(s->velocity.accel_bias, across, h * MODEL_ACCEL_BIAS_ATTITUDE_GAIN);
+            est_quat_turn(s->quat.q, turn);
+            for (unsigned n = 0; n < s->hist_len; ++n) est_quat_turn(s->hist_q[n], turn);
+        }
     }
     est_quat_up(s->quat.q, s->up);
     take(&s->link, now_us);
@@ -491,7 +512,7 @@ stab_link_status_t stab_drone_velocity(stab_t *s, uint16_t seq, uint32_t stamp_u
             shift_velocity(s, along, h * (MODEL_VEL_K_U - MODEL_VEL_K_V));
             est_accel_bias_update(s->velocity.accel_bias, along, h * MODEL_VEL_K_A);
         }
-        if (stab_link_fresh(s, now_us)) {
+        if (stab_link_fresh(s, now_us) && !SPLIT) {
             /* the flight controller's error takes the turn too: its next message keeps it */
             for (int i = 0; i < 3; ++i) d[i] = -d[i];
             move_fc_error(s, d);
