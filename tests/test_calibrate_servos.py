@@ -170,11 +170,10 @@ def bench(truth=TRUTH, **options):
     return s, ArmLink(s.device, clock=s.clock)
 
 
-def least_clearance(s, m=None, truth=TRUTH) -> float:
+def least_clearance(s, m, truth) -> float:
     """The least clearance (mm, plain geometry) of the arm's true poses while powered: each
-    shaft's position in the units of the model m's servo (the committed file's if None)."""
+    shaft's position in the units of the model m's servo, mounted as truth says."""
     rows = np.array([r[2:5] for r in s.board.shaft_trace if r[1]], dtype=float)
-    m = m or config.load()
     zero, direction = (np.array(v, float) for v in truth)
     q = direction * (rows - zero) * math.radians(m.servo_range_deg) / m.servo_units_max
     return float(oracles.clearance_mm(m, q).min())
@@ -185,29 +184,37 @@ def test_a_right_calibration_goes_through_with_the_verification_move(lab_model, 
     """From a disabled arm: enabled limp (nothing driven with the model's values), the zero
     pose, three jogs, three verification poses, the write: the servos' true zeros and
     directions, the supply off at the end, and no shaft ever in the body or a leg."""
-    s, arm = bench()
-    user = User(s, config.load(lab_model))
-    try:
-        assert servo_zero.servos(arm, lab_model, user.ask, user.confirm, seconds=SECONDS)
-        end = arm.next_heartbeat()
-    finally:
-        arm.close()
-        s.stop()
-    m = config.load(lab_model)
-    assert [sv.zero for sv in m.servos] == list(TRUTH_ZERO)
-    assert [sv.direction for sv in m.servos] == list(TRUTH_DIRECTION)
+    m, user, end = assert_calibrated(lab_model, capsys)
     assert end["enabled"] == 0
     # the steps of a calibration without the check, plus one question per verification pose
     assert user.said == [servo_zero.ZERO_POSE, *servo_zero.DIRECTION_QUESTIONS,
                          *[f"Is the arm now {servo_zero.sight(m, p)}?" for p in servo_zero.VERIFY],
                          f"write these changes to {lab_model}?"]
+
+
+def assert_calibrated(lab, capsys, truth=TRUTH, **sitl_options):
+    """The calibration of the arm whose model file is lab, by a careful user: the servos' true
+    zeros and directions written, both load checks passed, no shaft ever in the body or a
+    leg. (model written, the user, the last heartbeat)."""
+    s, arm = bench(truth, **sitl_options)
+    user = User(s, config.load(lab))
+    try:
+        assert servo_zero.servos(arm, lab, user.ask, user.confirm, seconds=SECONDS)
+        end = arm.next_heartbeat()
+    finally:
+        arm.close()
+        s.stop()
+    m = config.load(lab)
+    assert [sv.zero for sv in m.servos] == list(truth[0])
+    assert [sv.direction for sv in m.servos] == list(truth[1])
     out = capsys.readouterr().out
     loads = [line.strip() for line in out.splitlines() if "holds against gravity the way direction" in line]
-    least = least_clearance(s)
+    least = least_clearance(s, m, truth)
     with capsys.disabled():
         print("\n" + "\n".join(loads) + f"\nleast clearance of the shafts: {least:.1f} mm")
     assert len(loads) == 2, out
     assert least > 0.0
+    return m, user, end
 
 
 CASES = {
@@ -233,19 +240,26 @@ def test_a_wrong_calibration_is_refused_before_anything_is_written(lab_model, ca
     """Each refused with what to do, the file's bytes unchanged, the supply off at the end, and
     no shaft ever in the body or a leg (the verification route is safe with the mistake)."""
     user_options, allow, message = CASES[case]
-    before = lab_model.read_bytes()
-    s, arm = bench()
-    user = User(s, config.load(lab_model), **user_options)
+    assert_refused(lab_model, user_options, allow, message)
+
+
+def assert_refused(lab, user_options, allow, message, truth=TRUTH, **sitl_options):
+    """The calibration of the arm whose model file is lab, the user as user_options say,
+    refused with message: the file's bytes unchanged, the supply off at the end, and no shaft
+    ever in the body or a leg."""
+    before = lab.read_bytes()
+    s, arm = bench(truth, **sitl_options)
+    user = User(s, config.load(lab), **user_options)
     try:
         with pytest.raises(CalibrationError, match=message):
-            servo_zero.servos(arm, lab_model, user.ask, user.confirm, seconds=SECONDS, allow_unusual=allow)
+            servo_zero.servos(arm, lab, user.ask, user.confirm, seconds=SECONDS, allow_unusual=allow)
         end = arm.next_heartbeat()
     finally:
         arm.close()
         s.stop()
-    assert lab_model.read_bytes() == before
+    assert lab.read_bytes() == before
     assert end["enabled"] == 0
-    assert least_clearance(s) > 0.0
+    assert least_clearance(s, config.load(lab), truth) > 0.0
 
 
 @realtime
@@ -333,23 +347,9 @@ def test_an_xm430_arm_is_calibrated_with_the_verification_move(xm430_lab, capsys
     load checks read the XM430-W350's Present Current (the firmware's load word): its sense is
     gravity's at both load poses, and no shaft is ever in the body or a leg."""
     lab, options = xm430_lab
-    s, arm = bench(X_TRUTH, **options)
-    user = User(s, config.load(lab))
-    try:
-        assert servo_zero.servos(arm, lab, user.ask, user.confirm, seconds=SECONDS)
-    finally:
-        arm.close()
-        s.stop()
-    m = config.load(lab)
-    assert [sv.zero for sv in m.servos] == list(X_TRUTH_ZERO)
-    assert [sv.direction for sv in m.servos] == list(TRUTH_DIRECTION)
-    out = capsys.readouterr().out
-    loads = [line.strip() for line in out.splitlines() if "holds against gravity the way direction" in line]
-    least = least_clearance(s, m, X_TRUTH)
-    with capsys.disabled():
-        print("\n" + "\n".join(loads) + f"\nleast clearance of the shafts: {least:.1f} mm")
-    assert len(loads) == 2, out
-    assert least > 0.0
+    m, _, end = assert_calibrated(lab, capsys, X_TRUTH, **options)
+    assert end["enabled"] == 0
+    assert m.servo_model.name == "XM430-W350"
 
 
 @realtime
@@ -357,17 +357,5 @@ def test_an_xm430_joint_answered_the_wrong_way_is_caught_by_its_present_current(
     """Joint 3's jog answered the wrong way and every pose said yes to: the Present Current
     at the forearm-level pose pushes the other way than that direction says; nothing written."""
     lab, options = xm430_lab
-    before = lab.read_bytes()
-    s, arm = bench(X_TRUTH, **options)
-    user = User(s, config.load(lab), wrong=3, careless=True)
-    try:
-        with pytest.raises(CalibrationError, match=r"servo holds the arm pushing .* direction of joint 2 or of "
-                                                   r"joint 3 is wrong"):
-            servo_zero.servos(arm, lab, user.ask, user.confirm, seconds=SECONDS, allow_unusual=True)
-        end = arm.next_heartbeat()
-    finally:
-        arm.close()
-        s.stop()
-    assert lab.read_bytes() == before
-    assert end["enabled"] == 0
-    assert least_clearance(s, config.load(lab), X_TRUTH) > 0.0
+    assert_refused(lab, dict(wrong=3, careless=True), True,
+                   r"servo holds the arm pushing .* direction of joint 2 or of joint 3 is wrong", X_TRUTH, **options)
