@@ -321,9 +321,10 @@ def test_the_command_line_will_not_answer_the_servo_calibrations_questions(tmp_p
 
 # ---------------------------------------------------------------- an X-series arm
 
-# The same servos' mounting as TRUTH's, in XM430-W350 units (4096 a turn, 2048 the centre):
-# each zero the same angle off the centre as there.
-X_TRUTH_ZERO = (2061, 1998, 2025)
+# The same servos' mounting as TRUTH's, in XM430-W350 units (e-manuals: the AX-12A 300 deg over
+# 1023 units about 512, the XM430-W350 360 deg over 4096 about 2048): each zero the same angle
+# off the centre as there.
+X_TRUTH_ZERO = tuple(round(2048 + (z - 512) * (300 / 1023) / (360 / 4096)) for z in TRUTH_ZERO)
 X_TRUTH = (X_TRUTH_ZERO, TRUTH_DIRECTION)
 
 

@@ -35,7 +35,7 @@ from . import model_edit, plausible
 from .fit import CalibrationError
 from .guide import TRIES, ask_reading
 from ..link import CommandRefused
-from ..model import config, messages, pose_tolerance, servo as servo_map
+from ..model import config, messages, pose_tolerance, servo as servo_map, servo_models
 
 ZERO_POSE = ("Hold the arm hanging straight down, joint 1 turned so that raising joint 2 would swing it "
              "towards the drone's front (+x): every joint at 0 deg. Keep it there and press Enter.")
@@ -54,11 +54,11 @@ ZERO_WINDOW_DEG = 15.0
 # a result the user allowed) and any direction the wrong way round.
 ROUTE_SAFE_DEG = 25.0
 # A load this small (N m) says nothing of its direction: a holding AX-12A's reading wanders by
-# a few units (8 units of its 1023 are 0.0117 N m). The firmware streams every servo's load as
+# a few units (8 units of its 1023: 0.0117 N m). The firmware streams every servo's load as
 # the AX-12A's Present Load word (bit 10 the sense), in the servo's own units: 8 of an
 # XL430-W250's Present Load, 3 of an XM430-W350's Present Current (whose 4.1 N m stall makes
 # this light arm's loads 5 or 6 units of 2.69 mA).
-LOAD_MIN_NM = 0.0117
+LOAD_MIN_NM = 8 * servo_models.AX_12A.load_unit_nm
 ARRIVE_S = 20.0                    # the slowest verification jog at park speed takes 1.5 s
 
 
