@@ -96,6 +96,7 @@ def main() -> int:
     target_size()
     bus_traffic(m)
     xseries_bus()
+    xseries_tick()
     motion.report(m)
     return 0
 
@@ -118,7 +119,7 @@ def tilting_imu(m, n=N_TICKS):
 
 def tick_bench_build(gen_dir=generated.GENERATED):
     """bench/tick_bench.c with every application and generated source, for the M4 counter."""
-    sources = [str(s) for s in firmware.app_sources()] + [str(BENCH / "tick_bench.c")]
+    sources = [str(s) for s in firmware.app_sources(gen_dir)] + [str(BENCH / "tick_bench.c")]
     incs = [f"-I{d}" for d in (gen_dir, firmware.APP / "Inc")]
     return m4.build(sources, ["bench_run", "bench_message", "bench_pass"], cflags=target.M4_CFLAGS + incs)
 
@@ -255,6 +256,20 @@ def xseries_bus(n=9):
     print(f"\nX-series bus driver (servo_bus2.c, XM430-W350 model), per command: SYNC_WRITE built and sent, "
           f"status READ sent, its 94-byte reply checked and taken: {(run.insns - idle.insns) / n:.0f} insns, "
           f"{(run.cycles - idle.cycles) / n:.0f} est. cycles, {run.stack_bytes} bytes of stack.")
+
+
+def xseries_tick():
+    """The whole tick (bench/tick_bench.c) of the model file edited into an XM430-W350 arm."""
+    from uavarm.build import variants
+    m = config.load()
+    raw = tilting_imu(m, N_TICKS + 1)
+    idle, run = tick_runs(tick_bench_build(variants.build(XM430_EDITS).gen_dir), raw)
+    if not (idle.ret and run.ret):
+        raise SystemExit("tick bench: the XM430-W350 run did not complete (engaged, all commands sent)")
+    by_func = {k: (v - idle.cycles_by_function.get(k, 0)) / N_TICKS for k, v in run.cycles_by_function.items()}
+    print(f"\nWhole tick of the same arm on XM430-W350 servos (bench/tick_bench.c, as above): "
+          f"{(run.cycles - idle.cycles) / N_TICKS:.0f} est. cycles; largest shares: "
+          + ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:8]) + ".")
 
 
 if __name__ == "__main__":

@@ -17,6 +17,7 @@
 
 #include "app.h"
 #include "dxl_protocol.h"
+#include "dxl_protocol2.h"
 #include "imu_mpu6050.h"
 #include "llcp.h"
 #include "messages.h"
@@ -27,7 +28,12 @@ static uint32_t now;
 static uint8_t imu_regs[128];
 static char link_in[256];
 static size_t link_len, link_pos;
-static uint8_t replies[SBUS_SERVOS][DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN];   /* one per servo */
+#if MODEL_DXL_PROTOCOL == 2u
+#define REPLY_LEN (DXL2_STATUS_MIN_LEN + SBUS2_STATUS_LEN)
+#else
+#define REPLY_LEN (DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN)
+#endif
+static uint8_t replies[SBUS_SERVOS][REPLY_LEN];   /* one per servo */
 static const uint8_t *reply;
 static size_t reply_len, reply_pos;
 static app_t app;
@@ -51,13 +57,50 @@ static size_t link_read(void *ctx, uint8_t *buf, size_t cap)
 static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (void)buf; (void)n; return true; }
 /* The status packet each servo answers a READ with (configured, at `position`), built when
  * the goals change: composing it is the servo's work, not the firmware's. */
+static const uint8_t IDS[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
+#if MODEL_DXL_PROTOCOL == 2u
+/* Protocol 2.0 (X-series): Torque Enable .. Present Temperature, torque on, 12.0 V */
 static void build_replies(const uint16_t position[SBUS_SERVOS])
 {
-    static const uint8_t ids[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        uint8_t *r = replies[i];
+        memset(r, 0, REPLY_LEN);
+        const uint8_t head[] = { 0xFF, 0xFF, 0xFD, 0x00, IDS[i], (uint8_t)(REPLY_LEN - 7), (uint8_t)((REPLY_LEN - 7) >> 8),
+                                 DXL2_INST_STATUS, 0 };
+        memcpy(r, head, sizeof head);
+        uint8_t *p = r + sizeof head;
+        p[0] = 1u;                                                        /* Torque Enable */
+        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR] = (uint8_t)position[i];
+        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR + 1] = (uint8_t)(position[i] >> 8);
+        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR] = 120u;
+        p[MODEL_DXL_PRESENT_TEMPERATURE - SBUS2_STATUS_ADDR] = 30u;
+        const uint16_t crc = dxl2_crc(0, r, REPLY_LEN - 2);   /* (no FF FF FD in it: nothing to stuff) */
+        r[REPLY_LEN - 2] = (uint8_t)crc;
+        r[REPLY_LEN - 1] = (uint8_t)(crc >> 8);
+    }
+}
+
+/* Every READ is answered at once with the status packet of the requested servo. */
+static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
+{
+    (void)ctx;
+    if (n > 7 && buf[7] == DXL2_INST_READ) {
+        for (int i = 0; i < SBUS_SERVOS; ++i) {
+            if (IDS[i] == buf[4]) reply = replies[i];
+        }
+        reply_len = REPLY_LEN;
+        reply_pos = 0;
+    }
+    return true;
+}
+#else
+/* Protocol 1.0 (AX-12A): Torque Limit .. */
+static void build_replies(const uint16_t position[SBUS_SERVOS])
+{
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         uint8_t *r = replies[i];
         r[0] = r[1] = 0xFF;
-        r[2] = ids[i];
+        r[2] = IDS[i];
         r[3] = SBUS_STATUS_LEN + 2;
         r[4] = 0;
         memset(r + 5, 0, SBUS_STATUS_LEN);
@@ -66,7 +109,7 @@ static void build_replies(const uint16_t position[SBUS_SERVOS])
         r[5 + 4] = (uint8_t)position[i];                      /* Present Position (36) */
         r[5 + 5] = (uint8_t)(position[i] >> 8);
         r[5 + 10] = 120u;                                     /* Present Voltage (42): 12.0 V */
-        r[sizeof replies[i] - 1] = dxl_checksum(r + 2, sizeof replies[i] - 3);
+        r[REPLY_LEN - 1] = dxl_checksum(r + 2, REPLY_LEN - 3);
     }
 }
 
@@ -76,13 +119,14 @@ static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
     (void)ctx;
     if (n == 8 && buf[4] == DXL_INST_READ) {
         for (int i = 0; i < SBUS_SERVOS; ++i) {
-            if (replies[i][2] == buf[2]) reply = replies[i];
+            if (IDS[i] == buf[2]) reply = replies[i];
         }
-        reply_len = sizeof replies[0];
+        reply_len = REPLY_LEN;
         reply_pos = 0;
     }
     return true;
 }
+#endif
 static bool servo_busy(void *ctx) { (void)ctx; return false; }
 static size_t servo_read(void *ctx, uint8_t *buf, size_t cap)
 {

@@ -73,3 +73,12 @@ def test_the_xseries_bus_bench_takes_every_reading(capsys):
     require_arm_toolchain()
     bench.xseries_bus(n=2)
     assert "est. cycles" in capsys.readouterr().out
+
+
+def test_the_xseries_tick_bench_runs_engaged_with_all_its_bus_traffic(capsys):
+    """The whole tick of the model file made an XM430-W350 arm, built from that variant's own
+    generated code (its servo map, not the AX-12A's): engaged and following, every tick with
+    its SYNC_WRITE and its status reading (xseries_tick stops otherwise)."""
+    require_arm_toolchain()
+    bench.xseries_tick()
+    assert "XM430-W350 servos" in capsys.readouterr().out

@@ -89,7 +89,8 @@ extern "C" {
 #define SBUS2_STATUS_LEN 83
 #define SBUS2_VERIFY_ADDR 9        /* Return Delay Time .. Present Temperature */
 #define SBUS2_VERIFY_LEN 138
-#define SBUS2_SYNC_MAX 64          /* its SYNC_WRITE: 41 bytes, and room for byte stuffing */
+#define SBUS2_SYNC_MAX 41          /* its SYNC_WRITE (never stuffed: servo_bus2.c) */
+#define SBUS2_READ_LEN 14          /* a READ instruction */
 #define SBUS2_RX_MAX 192           /* a verify reading (149 bytes) and room for byte stuffing */
 
 typedef enum {
@@ -179,7 +180,11 @@ typedef struct {
     /* Protocol 2.0 (X-series) only (servo_bus2.c) */
     uint8_t refit_steps;                /* the refit writes still to send to servo refit_servo (bits) */
     uint8_t refit_servo;
-    uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position */
+    uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position, */
+    uint8_t sync2_len;                  /* its constant bytes built once at init; 0 if the ids cannot be sent */
+    uint16_t sync2_crc0;                /* the CRC of its bytes before the first ID */
+    uint8_t read2_pkt[SBUS_SERVOS][SBUS2_READ_LEN];   /* each servo's status READ, built once at init */
+    uint8_t read2_len[SBUS_SERVOS];     /* its length, 0 if the id cannot be sent */
     uint8_t direct2[DXL2_STATUS_MIN_LEN + SBUS2_VERIFY_LEN];   /* the expected reply so far */
     uint8_t rx2_buf[SBUS2_RX_MAX];
     dxl2_parser_t parser2;

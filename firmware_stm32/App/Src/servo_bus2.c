@@ -70,7 +70,14 @@ typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
 #define INSTRUCTION_LEN 10u           /* header, ID, LEN, instruction, CRC */
 #define READ_LEN (INSTRUCTION_LEN + 4u)
 #define SYNC_ENTRY_LEN 8u             /* Profile Velocity, Goal Position */
-#define SYNC_LEN (INSTRUCTION_LEN + 4u + (1u + SYNC_ENTRY_LEN) * SBUS_SERVOS)
+#define SYNC_HEAD 12u                 /* FF FF FD 00, ID, LEN, instruction, address, data length */
+#define SYNC_LEN (SYNC_HEAD + (1u + SYNC_ENTRY_LEN) * SBUS_SERVOS + 2u)
+typedef char packet_sizes[(READ_LEN == SBUS2_READ_LEN && SYNC_LEN == SBUS2_SYNC_MAX) ? 1 : -1];
+/* The SYNC_WRITE is never stuffed, so its length is fixed and its entries are written in
+ * place: an ID is at most 0xFC, and a value below 0xFF00 has no FF above its lowest byte, so
+ * no FF FF (let alone FF FF FD) can stand anywhere from its instruction on. */
+typedef char sync_write_never_stuffed[(MODEL_DXL_POSITION_MAX < 0xFF00u && MODEL_DXL_SPEED_MAX < 0xFF00u
+                                       && X_PROFILE_VELOCITY < 0xFF00u) ? 1 : -1];
 
 enum { CFG_READ, CFG_WRITE, CFG_VERIFY };   /* configuration steps of each servo */
 /* its writes, in order (bits of sbus_t.cfg_mask): the torque off if the EEPROM must be
@@ -122,7 +129,16 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
     memset(bus, 0, sizeof *bus);
     bus->port = port;
     bus->byte_us = (10u * 1000000u + baud - 1u) / baud;   /* start + 8 data + stop bits */
-    for (int i = 0; i < SBUS_SERVOS; ++i) bus->servo[i].id = ids[i];
+    for (int i = 0; i < SBUS_SERVOS; ++i) {
+        bus->servo[i].id = ids[i];
+        bus->read2_len[i] = (uint8_t)dxl2_build_read(bus->read2_pkt[i], sizeof bus->read2_pkt[i], ids[i],
+                                                     SBUS2_STATUS_ADDR, SBUS2_STATUS_LEN);
+    }
+    /* the SYNC_WRITE with every value 0: its head and IDs stay, the values and CRC change */
+    static const uint8_t zeros[SBUS_SERVOS * SYNC_ENTRY_LEN];
+    bus->sync2_len = (uint8_t)dxl2_build_sync_write(bus->sync2_pkt, sizeof bus->sync2_pkt, X_PROFILE_VELOCITY,
+                                                    SYNC_ENTRY_LEN, SBUS_SERVOS, ids, zeros);
+    bus->sync2_crc0 = dxl2_crc(0, bus->sync2_pkt, SYNC_HEAD);
     (void)dxl2_parser_init(&bus->parser2, bus->rx2_buf, sizeof bus->rx2_buf);
     enter(bus, SBUS_OFF);
 }
@@ -211,10 +227,10 @@ static bool send(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply)
     return true;
 }
 
-/* Sends a request to servo s, whose status packet has n_params parameters. */
-static bool request(sbus_t *bus, size_t len, uint8_t reply, sbus_servo_t *s, uint8_t n_params)
+/* Sends the len bytes at pkt to servo s, whose status packet has n_params parameters. */
+static bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, sbus_servo_t *s, uint8_t n_params)
 {
-    if (!send(bus, bus->tx, len, reply)) return false;
+    if (!send(bus, pkt, len, reply)) return false;
     bus->expect_servo = s;
     bus->expect_id = s->id;
     bus->expect_params = n_params;
@@ -440,11 +456,11 @@ static void configure(sbus_t *bus)
             uint8_t data[WRITE_MAX];
             const unsigned w = (unsigned)__builtin_ctz(bus->cfg_mask);
             const uint8_t addr = write_of(bus, w, i, data);
-            (void)request(bus, dxl2_build_write(bus->tx, sizeof bus->tx, s->id, addr, data, WRITE_LEN[w]),
-                          REPLY_OPTIONAL, s, 0);
+            const size_t len = dxl2_build_write(bus->tx, sizeof bus->tx, s->id, addr, data, WRITE_LEN[w]);
+            (void)request(bus, bus->tx, len, REPLY_OPTIONAL, s, 0);
         } else {
-            (void)request(bus, dxl2_build_read(bus->tx, sizeof bus->tx, s->id, SBUS2_VERIFY_ADDR, SBUS2_VERIFY_LEN),
-                          REPLY_REQUIRED, s, SBUS2_VERIFY_LEN);
+            const size_t len = dxl2_build_read(bus->tx, sizeof bus->tx, s->id, SBUS2_VERIFY_ADDR, SBUS2_VERIFY_LEN);
+            (void)request(bus, bus->tx, len, REPLY_REQUIRED, s, SBUS2_VERIFY_LEN);
         }
         return;
     }
@@ -556,15 +572,16 @@ static size_t build_refit(sbus_t *bus)
  * its register's range (nobody would hear the servo's error). */
 static size_t sync_fill(sbus_t *bus)
 {
-    uint8_t ids[SBUS_SERVOS], data[SBUS_SERVOS * SYNC_ENTRY_LEN];
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
+    uint8_t *entry = bus->sync2_pkt + SYNC_HEAD;   /* ID, Profile Velocity, Goal Position */
+    for (int i = 0; i < SBUS_SERVOS; ++i, entry += 1u + SYNC_ENTRY_LEN) {
         if (bus->goal[i] > MODEL_DXL_POSITION_MAX || bus->speed[i] > MODEL_DXL_SPEED_MAX) return 0;
-        ids[i] = bus->servo[i].id;
-        put32(data + SYNC_ENTRY_LEN * (unsigned)i, bus->speed[i]);
-        put32(data + SYNC_ENTRY_LEN * (unsigned)i + 4u, bus->goal[i]);
+        put32(entry + 1, bus->speed[i]);
+        put32(entry + 5, bus->goal[i]);
     }
-    return dxl2_build_sync_write(bus->sync2_pkt, sizeof bus->sync2_pkt, X_PROFILE_VELOCITY, SYNC_ENTRY_LEN,
-                                 SBUS_SERVOS, ids, data);
+    const uint16_t crc = dxl2_crc(bus->sync2_crc0, bus->sync2_pkt + SYNC_HEAD, SYNC_LEN - SYNC_HEAD - 2u);
+    bus->sync2_pkt[SYNC_LEN - 2u] = (uint8_t)crc;
+    bus->sync2_pkt[SYNC_LEN - 1u] = (uint8_t)(crc >> 8);
+    return bus->sync2_len;
 }
 
 /* A status read's end: the reading, or a retry, or the servo marked failed; then the next. */
@@ -622,12 +639,13 @@ static void run(sbus_t *bus)
         }
         flush_rx(bus);
         bus->refitting = true;
-        (void)request(bus, build_refit(bus), REPLY_OPTIONAL, &bus->servo[bus->refit_servo], 0);
+        (void)request(bus, bus->tx, build_refit(bus), REPLY_OPTIONAL, &bus->servo[bus->refit_servo], 0);
     } else if (bus->read_due) {
         flush_rx(bus);
         const unsigned i = bus->read_index;
-        const size_t len = dxl2_build_read(bus->tx, sizeof bus->tx, bus->servo[i].id, SBUS2_STATUS_ADDR, SBUS2_STATUS_LEN);
-        if (request(bus, len, REPLY_REQUIRED, &bus->servo[i], SBUS2_STATUS_LEN)) bus->read_due = false;
+        if (request(bus, bus->read2_pkt[i], bus->read2_len[i], REPLY_REQUIRED, &bus->servo[i], SBUS2_STATUS_LEN)) {
+            bus->read_due = false;
+        }
     }
 }
 
