@@ -273,4 +273,7 @@ def xseries_tick():
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except m4.ToolError as e:
+        sys.exit(f"make bench: {e}")

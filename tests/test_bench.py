@@ -82,3 +82,15 @@ def test_the_xseries_tick_bench_runs_engaged_with_all_its_bus_traffic(capsys):
     require_arm_toolchain()
     bench.xseries_tick()
     assert "XM430-W350 servos" in capsys.readouterr().out
+
+
+def test_without_the_arm_toolchain_make_bench_says_what_to_install(tmp_path):
+    """No arm-none-eabi-gcc on PATH: a line naming the toolchain and its Debian packages, exit
+    status 1, no Python traceback."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, str(ROOT / "bench" / "run.py")], capture_output=True, text=True,
+                          env={"PATH": str(tmp_path), "HOME": str(tmp_path)}, cwd=ROOT)
+    assert proc.returncode == 1
+    assert "arm-none-eabi-gcc not found" in proc.stderr and "gcc-arm-none-eabi" in proc.stderr
+    assert "Traceback" not in proc.stderr

@@ -16,6 +16,6 @@ Arguments: a Python float is a float, an int an int32, `U32(x)` a uint32, `F64(x
 call into `Result.arrays` (one entry per argument, None for the scalars).
 """
 from .emulate import Arr, F64, U32, Result
-from .image import Image, build
+from .image import Image, ToolError, build
 
-__all__ = ["Arr", "F64", "U32", "Image", "Result", "build"]
+__all__ = ["Arr", "F64", "U32", "Image", "Result", "ToolError", "build"]

@@ -47,7 +47,11 @@ class ToolError(RuntimeError):
 
 
 def _run(cmd) -> str:
-    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
+    try:
+        proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True)
+    except FileNotFoundError:
+        raise ToolError(f"{cmd[0]} not found: the Cortex-M4 figures need the GNU Arm toolchain "
+                        "(Debian: apt-get install gcc-arm-none-eabi libnewlib-arm-none-eabi)") from None
     if proc.returncode != 0:
         raise ToolError(f"{' '.join(map(str, cmd))}\n{proc.stdout}{proc.stderr}")
     return proc.stdout
