@@ -79,20 +79,6 @@ static void build_replies(const uint16_t position[SBUS_SERVOS])
         r[REPLY_LEN - 1] = (uint8_t)(crc >> 8);
     }
 }
-
-/* Every READ is answered at once with the status packet of the requested servo. */
-static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
-{
-    (void)ctx;
-    if (n > 7 && buf[7] == DXL2_INST_READ) {
-        for (int i = 0; i < SBUS_SERVOS; ++i) {
-            if (IDS[i] == buf[4]) reply = replies[i];
-        }
-        reply_len = REPLY_LEN;
-        reply_pos = 0;
-    }
-    return true;
-}
 #else
 /* Protocol 1.0 (AX-12A): Torque Limit .. */
 static void build_replies(const uint16_t position[SBUS_SERVOS])
@@ -112,21 +98,29 @@ static void build_replies(const uint16_t position[SBUS_SERVOS])
         r[REPLY_LEN - 1] = dxl_checksum(r + 2, REPLY_LEN - 3);
     }
 }
+#endif
 
 /* Every READ is answered at once with the status packet of the requested servo. */
 static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
 {
     (void)ctx;
-    if (n == 8 && buf[4] == DXL_INST_READ) {
+#if MODEL_DXL_PROTOCOL == 2u
+    const bool read = n > 7 && buf[7] == DXL2_INST_READ;
+    const uint8_t id = n > 4 ? buf[4] : 0;
+#else
+    const bool read = n == 8 && buf[4] == DXL_INST_READ;
+    const uint8_t id = n > 2 ? buf[2] : 0;
+#endif
+    if (read) {
         for (int i = 0; i < SBUS_SERVOS; ++i) {
-            if (IDS[i] == buf[2]) reply = replies[i];
+            if (IDS[i] == id) reply = replies[i];
         }
         reply_len = REPLY_LEN;
         reply_pos = 0;
     }
     return true;
 }
-#endif
+
 static bool servo_busy(void *ctx) { (void)ctx; return false; }
 static size_t servo_read(void *ctx, uint8_t *buf, size_t cap)
 {
