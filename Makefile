@@ -63,7 +63,7 @@ fuzz: $(STAMP)
 # application and the model loader on both cores, 5 million each (about two hours in all
 # on an idle 2-core machine).
 fuzz-long: $(STAMP)
-	$(PY) fuzz/run.py --runs 10000000 llcp_rx dxl_parser
+	$(PY) fuzz/run.py --runs 10000000 llcp_rx dxl_parser dxl2_parser
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 app_link
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 model_loader
 

@@ -3,8 +3,8 @@
     .venv/bin/python fuzz/make_seeds.py
 
 Every seed is a small valid input built with the project's own Python codecs: LLCP frames
-from uavarm.link.llcp / uavarm.link.messages, status packets answered by the AX-12A simulator
-(uavarm.sim.ax12_sim), command sessions for the whole application in the op encoding that
+from uavarm.link.llcp / uavarm.link.messages, status packets answered by the AX-12A and XM430-W350 simulators
+(uavarm.sim.ax12_sim, uavarm.sim.xseries_sim), command sessions for the whole application in the op encoding that
 fuzz/app_link.c documents, and the model file. The folders are rebuilt; regress-* inputs found by
 the fuzzers and committed by hand are kept.
 """
@@ -22,10 +22,10 @@ sys.path.insert(0, str(ROOT))
 
 from uavarm.link import llcp, messages  # noqa: E402
 from uavarm.model import config  # noqa: E402
-from uavarm.sim import ax12_sim
+from uavarm.sim import ax12_sim, xseries_sim
 
 CORPUS = Path(__file__).resolve().parent / "corpus"
-MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "app_link": 1024, "model_loader": 16384}   # fuzz/run.py
+MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "dxl2_parser": 2048, "app_link": 1024, "model_loader": 16384}   # fuzz/run.py
 
 
 def frame(name: str, **fields) -> bytes:
@@ -89,6 +89,45 @@ def dxl_seeds() -> list[bytes]:
         b"\x00" + b"\xff\xff\xff" + read[:7] + ping + write,
         b"\x10" + read[:-1] + bytes([read[-1] ^ 1]) + err,
         b"\x2b" + b"\x00\x55" + verify[:20] + verify + read,
+    ]
+
+
+# ------------------------------------------------------------------ dxl2_parser
+
+def x_instruction(id_: int, inst: int, params: bytes) -> bytes:
+    """A Protocol 2.0 instruction packet (the e-manual's layout, stuffed, with its CRC)."""
+    body = xseries_sim.stuffed(bytes([inst]) + params)
+    head = xseries_sim.HEADER + bytes([id_]) + (len(body) + 2).to_bytes(2, "little")
+    return head + body + xseries_sim.crc16(head + body).to_bytes(2, "little")
+
+
+def x_status_replies() -> list[bytes]:
+    """Status packets of a simulated XM430-W350: the per-tick status read (Torque Enable ..
+    Present Temperature), the configuration read-back, a PING, a WRITE's answer, one with
+    the Data Limit error; and one whose parameters the servo had to stuff."""
+    servo = xseries_sim.XServo(xseries_sim.XM430_W350, 2, position=3000.0)
+    out = []
+    for inst, params in ((xseries_sim.INST_READ, bytes([64, 0, 83, 0])), (xseries_sim.INST_READ, bytes([9, 0, 138, 0])),
+                         (xseries_sim.INST_PING, b""), (xseries_sim.INST_WRITE, bytes([65, 0, 1])),
+                         (xseries_sim.INST_WRITE, bytes([52, 0, 0x00, 0x10, 0, 0]))):   # 4096: range error
+        reply = None
+        for t, byte in enumerate(x_instruction(servo.id, inst, params)):
+            reply = servo.receive(byte, t * 1e-6) or reply
+        assert reply is not None, (inst, params)
+        out.append(reply.data)
+    return out + [xseries_sim.status_packet(2, 0, bytes([0xFF, 0xFF, 0xFD, 0x01, 0xFF, 0xFF, 0xFD]))]
+
+
+def dxl2_seeds() -> list[bytes]:
+    """size byte (small window 11 + b % 64), then received bytes; "RST!" resets."""
+    read, verify, ping, write, err, stuffed = x_status_replies()
+    echo = x_instruction(2, xseries_sim.INST_READ, bytes([64, 0, 83, 0]))
+    return [
+        b"\x08" + read,
+        b"\x3f" + echo + read + b"RST!" + verify,
+        b"\x00" + b"\xff\xff\xfd\xff" + read[:9] + ping + write,
+        b"\x10" + read[:-1] + bytes([read[-1] ^ 1]) + err,
+        b"\x05" + stuffed + stuffed[:12] + stuffed[13:],   # then again, its added FD lost
     ]
 
 
@@ -265,6 +304,7 @@ def write(name: str, seeds: list[bytes], named: dict[str, bytes] | None = None) 
 def main() -> int:
     write("llcp_rx", llcp_seeds())
     write("dxl_parser", dxl_seeds())
+    write("dxl2_parser", dxl2_seeds())
     write("app_link", app_seeds())
     write("model_loader", model_seeds(), model_regressions())
     return 0

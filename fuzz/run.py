@@ -2,7 +2,7 @@
 
     .venv/bin/python fuzz/run.py                       # every harness, 20 s each
     .venv/bin/python fuzz/run.py --time 900 --workers 2 app_link   # both cores on one harness
-    .venv/bin/python fuzz/run.py --runs 10000000 llcp_rx dxl_parser
+    .venv/bin/python fuzz/run.py --runs 10000000 llcp_rx dxl_parser dxl2_parser
     .venv/bin/python fuzz/run.py --replay              # each committed seed once
 
 C harnesses (fuzz/<name>.c) are built with clang's libFuzzer, AddressSanitizer and
@@ -51,18 +51,21 @@ def _c_sources(name: str) -> list[Path]:
         return [APP_SRC / "llcp.c", generated.GENERATED / "messages.c"]
     if name == "dxl_parser":
         return [APP_SRC / "dxl_protocol.c"]
+    if name == "dxl2_parser":
+        return [APP_SRC / "dxl_protocol2.c"]
     if name == "app_link":
         return firmware.app_sources()
     raise KeyError(name)
 
 
-C_HARNESSES = ("llcp_rx", "dxl_parser", "app_link")
+C_HARNESSES = ("llcp_rx", "dxl_parser", "dxl2_parser", "app_link")
 PY_HARNESSES = ("model_loader",)
 HARNESSES = C_HARNESSES + PY_HARNESSES
 # libFuzzer options per harness: longest input, and how long one input may take.
 OPTIONS = {
     "llcp_rx": ["-max_len=1024", "-timeout=10"],
     "dxl_parser": ["-max_len=1024", "-timeout=10"],
+    "dxl2_parser": ["-max_len=2048", "-timeout=10"],
     "app_link": ["-max_len=1024", "-timeout=10"],
     "model_loader": ["-max_len=16384", "-timeout=30", f"-dict={FUZZ / 'model_loader.dict'}"],
 }
@@ -312,7 +315,7 @@ def coverage(name: str) -> str:
     for p in parts + [raw]:
         p.unlink(missing_ok=True)
     # the protocol harnesses reach only the receiving functions of their files: per function
-    per_function = ["-show-functions"] if name in ("llcp_rx", "dxl_parser") else []
+    per_function = ["-show-functions"] if name in ("llcp_rx", "dxl_parser", "dxl2_parser") else []
     report = subprocess.run([tools["llvm-cov"], "report", str(exe), f"-instr-profile={out / 'merged.profdata'}",
                              *per_function, *(str(t.relative_to(ROOT)) for t in targets)],
                             check=True, capture_output=True, text=True, cwd=ROOT).stdout

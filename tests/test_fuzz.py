@@ -28,9 +28,9 @@ from uavarm.link.messages import FAULTS
 # build that links nothing, a harness that returns early) fails. These runs reach 76, 78,
 # 1,428 and 231 edges in 26 s of CPU; two to four times as many (200,000, 60,000, 20,000 and
 # 6,000) reach 76, 78, 1,464 and 235 in 66 s. The long runs are `make fuzz-long`'s.
-SHORT_RUNS = {"llcp_rx": 50_000, "dxl_parser": 20_000, "app_link": 10_000, "model_loader": 3_000}
+SHORT_RUNS = {"llcp_rx": 50_000, "dxl_parser": 20_000, "dxl2_parser": 20_000, "app_link": 10_000, "model_loader": 3_000}
 SEED = 1
-MIN_COV = {"llcp_rx": 60, "dxl_parser": 60, "app_link": 900, "model_loader": 120}
+MIN_COV = {"llcp_rx": 60, "dxl_parser": 60, "dxl2_parser": 60, "app_link": 900, "model_loader": 120}
 
 
 def _load_runner():
@@ -60,7 +60,7 @@ def test_every_harness_listed_and_seeded():
         assert all(0 < p.stat().st_size <= max_len for p in seeds), name
 
 
-@pytest.mark.parametrize("name", ["llcp_rx", "dxl_parser", "app_link", "model_loader"])
+@pytest.mark.parametrize("name", ["llcp_rx", "dxl_parser", "dxl2_parser", "app_link", "model_loader"])
 def test_seed_corpus_replays_clean(runner, name):
     result = runner.replay(name)
     n_seeds = sum(1 for p in (runner.SEEDS / name).iterdir() if p.is_file())
@@ -104,7 +104,7 @@ def test_short_fuzz_run_finds_nothing(runner, tmp_path):
     def run(name):
         return runner.fuzz(name, runs=SHORT_RUNS[name], extra=(f"-seed={SEED}",), work=tmp_path / name)
     with ThreadPoolExecutor(max_workers=2) as pool:
-        results = list(pool.map(run, ["app_link", "model_loader", "dxl_parser", "llcp_rx"]))
+        results = list(pool.map(run, ["app_link", "model_loader", "dxl_parser", "dxl2_parser", "llcp_rx"]))
     print("\n" + runner.table(results))
     failed = []
     for r in results:

@@ -17,6 +17,7 @@ import arm_spec
 import oracles
 from conftest import ROOT
 from oracles import check_pose, servo_path
+from test_xseries_board import xm430_folder
 from uavarm.build import cbuild, firmware, generated
 from uavarm.model import collision, config, kinematics
 
@@ -36,20 +37,27 @@ def grid(m):
     return targets, tilts
 
 
-def harness_lib():
+def harness_lib(gen_dir=generated.GENERATED):
     """safety_grid.c includes app.c (its static command path): app.c's hash joins the flags,
-    so an edited app.c rebuilds."""
+    so an edited app.c rebuilds. gen_dir: the generated code of the model file to build for."""
     app_c = firmware.APP / "Src" / "app.c"
-    sources = [s for s in firmware.app_sources() if s != app_c] + [HARNESS / "safety_grid.c"]
+    sources = [s for s in firmware.app_sources(gen_dir) if s != app_c] + [HARNESS / "safety_grid.c"]
     tag = hashlib.sha256(app_c.read_bytes()).hexdigest()[:16]
     return cbuild.load("safety_grid", sources, [HARNESS / "safety_grid.h"],
-                       include_dirs=[generated.GENERATED, firmware.APP / "Inc", HARNESS, firmware.APP / "Src"],
+                       include_dirs=[gen_dir, firmware.APP / "Inc", HARNESS, firmware.APP / "Src"],
                        extra_flags=[f"-DAPP_C_SHA=0x{tag}"])
 
 
 @pytest.fixture(scope="module")
 def harness():
     return harness_lib()
+
+
+@pytest.fixture(scope="module")
+def xm430_harness(tmp_path_factory):
+    """(the oracle's numbers of an XM430-W350 model file, the harness built from it)."""
+    folder = xm430_folder(tmp_path_factory)
+    return arm_spec.spec(folder / "arm.toml"), harness_lib(folder / "generated")
 
 
 def assert_safe(m, q, what):
@@ -115,9 +123,21 @@ def test_every_commanded_move_is_safe_from_any_start(harness, grid):
     servos' path from the one before (every joint at the same speed, each arriving at its own
     time, sampled) pass the plain-geometry check, and so do the shafts themselves after every 1 ms
     step of the servos (in which one moved)."""
-    ffi, lib = harness
     physics, spacing = grid
-    m = arm_spec.spec()      # the oracle's numbers, read apart from the generator
+    every_move_is_safe(harness, arm_spec.spec(), physics, spacing, AX12_UNIT_RAD)
+
+
+def test_every_commanded_move_of_an_xm430_arm_is_safe_from_any_start(xm430_harness):
+    """The same pairs for the model file made an XM430-W350 arm (its Protocol 2.0 driver, its
+    units and zeros), on the slowest servos: 45 ms of lag on 9.0 V, the 48 mm grid."""
+    m, harness = xm430_harness
+    every_move_is_safe(harness, m, PHYSICS[2], 48.0, XM430_UNIT_RAD)
+
+
+def every_move_is_safe(harness, m, physics, spacing, unit_rad):
+    """m: the oracle's numbers (arm_spec) of the model file the harness was built from;
+    unit_rad: its servos' unit (their e-manual's)."""
+    ffi, lib = harness
     reach = m.L1 + m.L2 + m.L3
     xs = np.arange(-reach, reach + 0.1, spacing)
     zs = np.arange(-reach - 20.0, 20.1, spacing)
@@ -136,7 +156,7 @@ def test_every_commanded_move_is_safe_from_any_start(harness, grid):
         b = g[1:][same_run]
         paths = servo_path(a, b, 5)[:, 1:-1].reshape(-1, 3)
         near += assert_safe(m, paths, f"paths from {np.degrees(start).round(1)}")
-        q = units_to_joints(m, shafts)
+        q = units_to_joints(m, shafts, unit_rad)
         near += assert_safe(m, q, f"shafts from {np.degrees(start).round(1)}")
         clearance = min(clearance, float(oracles.clearance_mm(m, q).min()))
         moves += len(a)
@@ -147,38 +167,63 @@ def test_every_commanded_move_is_safe_from_any_start(harness, grid):
           f"{len(tilts)} tilts = {runs} engage/follow/disengage runs, {moves} moves checked along the servos' path, "
           f"{samples} shaft samples (every 1 ms step with one moving), 0 unsafe ({near} within {MARGIN} of a boundary), the shafts "
           f"{clearance:.2f} mm clear of the body and the legs at least; {total_refused} routes refused")
+    assert samples > 0
 
 
 def test_the_harness_servo_moves_as_the_simulator_s():
     """The harness's servo (C, for speed) against uavarm.sim.ax12_sim's AX-12A fed the same
     goals and speeds through the bus: the same shaft, 1 ms by 1 ms, at every lag and supply."""
     from uavarm.sim import ax12_sim
-    ffi, lib = harness_lib()
+
+    def simulator(lag, volts):
+        servo = ax12_sim.AX12(1, position=500.0, voltage=volts, time_constant=lag, deadband=lag > 0)
+        servo.set_register("torque_enable", 1)
+        return servo
+    servo_moves_as_the_simulator_s(harness_lib(), simulator, "moving_speed", (200, 800), [0, 90, 270, 532, 1023])
+
+
+def test_the_xm430_harness_servo_moves_as_the_simulator_s(xm430_harness):
+    """The same for the XM430-W350 build against uavarm.sim.xseries_sim's XServo (Profile
+    Velocity; Profile Acceleration 0, as the driver sets it up)."""
+    from uavarm.sim import xseries_sim
+
+    def simulator(lag, volts):
+        servo = xseries_sim.XServo(xseries_sim.XM430_W350, 1, position=500.0, voltage=volts, time_constant=lag)
+        servo.set_register("torque_enable", 1)
+        return servo
+    servo_moves_as_the_simulator_s(xm430_harness[1], simulator, "profile_velocity", (200, 3800), [0, 44, 131, 258, 1023])
+
+
+def servo_moves_as_the_simulator_s(harness, simulator, speed_register, goal_range, speed_choices):
+    ffi, lib = harness
     rng = np.random.default_rng(5)
     for lag, volts in PHYSICS:
         n = 600
-        goals = np.repeat(rng.integers(200, 800, n // 50), 50).astype(np.float32)
-        speeds = np.repeat(rng.choice([0, 90, 270, 532, 1023], n // 50), 50).astype(np.float32)
+        goals = np.repeat(rng.integers(*goal_range, n // 50), 50).astype(np.float32)
+        speeds = np.repeat(rng.choice(speed_choices, n // 50), 50).astype(np.float32)
         shafts = np.empty(n, np.float32)
         lib.servo_model(lag, volts, ffi.from_buffer("float[]", goals), ffi.from_buffer("float[]", speeds), n, 500.0,
                         ffi.from_buffer("float[]", shafts))
-        servo = ax12_sim.AX12(1, position=500.0, voltage=volts, time_constant=lag, deadband=lag > 0)
-        servo.set_register("torque_enable", 1)
+        servo = simulator(lag, volts)
         ref = []
         for g, v in zip(goals, speeds):
             servo.set_register("goal_position", int(g))
-            servo.set_register("moving_speed", int(v))
+            servo.set_register(speed_register, int(v))
             servo.step(0.001)
             ref.append(servo.position)
         np.testing.assert_allclose(shafts, ref, atol=0.02, err_msg=f"lag {lag}, {volts} V")
 
 
-def units_to_joints(m, units):
+AX12_UNIT_RAD = math.radians(300.0) / 1023        # AX-12A e-manual: 1023 units over 300 deg
+XM430_UNIT_RAD = 2 * math.pi / 4096               # XM430-W350 e-manual: 4096 units a turn
+
+
+def units_to_joints(m, units, unit_rad):
     """Joint angles (rad) of servo positions, from the model's zero and direction of each servo and
-    the AX-12A's 1023 units over 300 deg."""
+    the servos' unit."""
     zero = np.array([s.zero for s in m.servos], dtype=float)
     direction = np.array([s.direction for s in m.servos], dtype=float)
-    return direction * (np.asarray(units, dtype=float) - zero) * math.radians(300.0) / 1023
+    return direction * (np.asarray(units, dtype=float) - zero) * unit_rad
 
 
 def test_from_park_every_reachable_target_gets_a_route(harness):

@@ -32,14 +32,20 @@ UNIT_RAD = 2 * math.pi / UNITS_PER_TURN
 KEEP_ALIVE = 0.25                 # s between the drone's frames
 
 
-@pytest.fixture(scope="module")
-def xm430(tmp_path_factory):
-    """(model, ffi, lib): the firmware built for the host from an XM430-W350 model file."""
+def xm430_folder(tmp_path_factory) -> Path:
+    """A folder with an XM430-W350 model file (arm.toml) and its generated code (generated/),
+    made once per test run."""
     def make(folder):
         (folder / "arm.toml").write_text(xm430_text())
         assert generate.main(["--model", str(folder / "arm.toml"), "--out", str(folder / "generated")]) == 0
         return str(folder)
-    folder = Path(once_per_run(tmp_path_factory, "xm430_firmware", make))
+    return Path(once_per_run(tmp_path_factory, "xm430_firmware", make))
+
+
+@pytest.fixture(scope="module")
+def xm430(tmp_path_factory):
+    """(model, ffi, lib): the firmware built for the host from an XM430-W350 model file."""
+    folder = xm430_folder(tmp_path_factory)
     ffi, lib = firmware.load(folder / "generated")
     return config.load(folder / "arm.toml"), ffi, lib
 

@@ -1,11 +1,12 @@
 /* The application's own command path (app.c's command_servos, engage and disengage as
  * app.c does them) on an app_t set up in memory: app.c is compiled into this file so its
  * static functions are reachable; nothing of it is re-implemented here. Its goals go to the
- * real servo driver (servo_bus.c) through a port whose servos move as the AX-12A model of
- * uavarm/sim/ax12_sim.py does (written again here for speed; tests/test_safety_grid.py
- * checks the two against each other): each shaft follows a profile that moves toward its goal
- * at the Moving Speed, capped at 59 rpm x supply / 12 V, with a first-order lag that stops
- * within the compliance margin (1 unit) of the profile. */
+ * real servo driver (servo_bus.c, or servo_bus2.c for the X-series) through a port whose
+ * servos move as the model of uavarm/sim/ax12_sim.py (AX-12A) or uavarm/sim/xseries_sim.py
+ * (XM430-W350) does (written again here for speed; tests/test_safety_grid.py checks the two
+ * against each other): each shaft follows a profile that moves toward its goal at the speed
+ * asked, capped at the no-load speed x supply / 12 V, with a first-order lag (the AX-12A's
+ * stops within its compliance margin, 1 unit, of the profile). */
 #include "safety_grid.h"
 
 #include <math.h>
@@ -14,15 +15,23 @@
 
 #define SUBSTEP_US 1000u               /* the servos' integration step */
 #define STILL 0.01f                    /* units: a shaft moved less since the last sample stands still */
+#if MODEL_DXL_PROTOCOL == 2u
+#include "dxl_protocol2.h"
+#define NO_LOAD_UNITS_PER_S (46.0f * 4096.0f / 60.0f)           /* XM430-W350: 46 rpm at 12 V */
+#define UNITS_PER_S_PER_SPEED (0.229f * 4096.0f / 60.0f)        /* Profile Velocity: 0.229 rpm a unit */
+#define REPLY_LEN (DXL2_STATUS_MIN_LEN + SBUS2_STATUS_LEN)
+#else
 #define NO_LOAD_UNITS_PER_S (59.0f * 6.0f * 1023.0f / 300.0f)   /* 59 rpm at 12 V */
 #define UNITS_PER_S_PER_SPEED (0.111f * 6.0f * 1023.0f / 300.0f)
 #define COMPLIANCE_MARGIN 1.0f
+#define REPLY_LEN (DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN)
+#endif
 
 typedef struct {
     uint32_t now_us;
     float lag_s, volts;
     float goal[SBUS_SERVOS], speed[SBUS_SERVOS], profile[SBUS_SERVOS], shaft[SBUS_SERVOS];
-    uint8_t reply[DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN];
+    uint8_t reply[REPLY_LEN];
     size_t reply_len;
 } servos_t;
 
@@ -54,6 +63,48 @@ static bool imu_write(void *ctx, uint8_t addr, uint8_t reg, uint8_t value)
     return false;
 }
 
+#if MODEL_DXL_PROTOCOL == 2u
+static uint32_t le32(const uint8_t *b)
+{
+    return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
+}
+
+/* A SYNC_WRITE of Profile Velocity and Goal Position sets speeds and goals; a READ of Torque
+ * Enable .. Present Temperature (64..146) is answered at once with the torque on, where the
+ * shaft stands (rounded to a unit) and the supply. */
+static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
+{
+    (void)ctx;
+    if (n >= 14 && buf[7] == DXL2_INST_SYNC_WRITE) {
+        for (size_t k = 12; k + 9 <= n - 2; k += 9) {
+            const int i = index_of(buf[k]);
+            if (i < 0) continue;
+            servos.speed[i] = (float)le32(buf + k + 1);
+            servos.goal[i] = (float)le32(buf + k + 5);
+        }
+    } else if (n == 14 && buf[7] == DXL2_INST_READ) {
+        const int i = index_of(buf[4]);
+        uint8_t *r = servos.reply;
+        memset(r, 0, sizeof servos.reply);
+        const uint8_t head[] = { 0xFF, 0xFF, 0xFD, 0x00, buf[4], (uint8_t)(REPLY_LEN - 7), 0, DXL2_INST_STATUS, 0 };
+        memcpy(r, head, sizeof head);
+        uint8_t *p = r + sizeof head;          /* from Torque Enable (64) on */
+        const uint16_t at = (uint16_t)lroundf(servos.shaft[i < 0 ? 0 : i]);
+        const uint16_t volts = (uint16_t)lroundf(servos.volts * 10.0f);
+        p[0] = 1;                              /* Torque Enable */
+        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR] = (uint8_t)at;
+        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR + 1] = (uint8_t)(at >> 8);
+        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR] = (uint8_t)volts;
+        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR + 1] = (uint8_t)(volts >> 8);
+        p[MODEL_DXL_PRESENT_TEMPERATURE - SBUS2_STATUS_ADDR] = 30;
+        const uint16_t crc = dxl2_crc(0, r, REPLY_LEN - 2);   /* (nothing in it to stuff) */
+        r[REPLY_LEN - 2] = (uint8_t)crc;
+        r[REPLY_LEN - 1] = (uint8_t)(crc >> 8);
+        servos.reply_len = i < 0 ? 0 : REPLY_LEN;
+    }
+    return true;
+}
+#else
 /* A SYNC_WRITE sets goals and speeds; a READ of registers 32..43 is answered at once with
  * where the shaft stands (rounded to a unit), Torque Limit 1022 and the supply. */
 static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
@@ -85,6 +136,7 @@ static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
     }
     return true;
 }
+#endif
 
 static size_t servo_read(void *ctx, uint8_t *buf, size_t cap)
 {
@@ -106,14 +158,21 @@ static void servos_step(float h)
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         const float asked = servos.speed[i] * UNITS_PER_S_PER_SPEED;
         const float travel = (servos.speed[i] == 0.0f || asked > cap ? cap : asked) * h;
-        const float left = servos.goal[i] - servos.profile[i];
-        servos.profile[i] = fabsf(left) <= travel ? servos.goal[i] : servos.profile[i] + copysignf(travel, left);
-        const float err = servos.profile[i] - servos.shaft[i];
+        const float before = servos.profile[i];
+        const float left = servos.goal[i] - before;
+        servos.profile[i] = fabsf(left) <= travel ? servos.goal[i] : before + copysignf(travel, left);
         if (servos.lag_s <= 0.0f) {
             servos.shaft[i] = servos.profile[i];
-        } else if (fabsf(err) > COMPLIANCE_MARGIN) {
-            servos.shaft[i] += err * -expm1f(-h / servos.lag_s);
+            continue;
         }
+#if MODEL_DXL_PROTOCOL == 2u
+        /* the lag's exact answer to a profile moving linearly within the step */
+        const float slope = (servos.profile[i] - before) / h, trail = slope * servos.lag_s;
+        servos.shaft[i] = servos.profile[i] - trail + (servos.shaft[i] - before + trail) * expf(-h / servos.lag_s);
+#else
+        const float err = servos.profile[i] - servos.shaft[i];
+        if (fabsf(err) > COMPLIANCE_MARGIN) servos.shaft[i] += err * -expm1f(-h / servos.lag_s);
+#endif
     }
 }
 
