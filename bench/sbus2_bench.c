@@ -14,8 +14,9 @@
 #include "dxl_protocol2.h"
 #include "model_params.h"
 #include "servo_bus.h"
+#include "xseries_reply.h"
 
-#define REPLY_LEN (DXL2_STATUS_MIN_LEN + SBUS2_STATUS_LEN)
+#define REPLY_LEN XSERIES_REPLY_LEN
 
 static const uint8_t IDS[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
 static uint32_t now;
@@ -24,24 +25,10 @@ static const uint8_t *reply;
 static size_t reply_pos;
 static sbus_t bus;
 
-/* Each servo's answer to the status READ: torque on, at 2048, 12.0 V, 30 deg C, no error
- * (no FF FF FD in it: nothing to stuff). */
+/* Each servo's answer to the status READ, at 2048. */
 static void build_replies(void)
 {
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
-        uint8_t *r = replies[i];
-        memset(r, 0, REPLY_LEN);
-        const uint8_t head[] = { 0xFF, 0xFF, 0xFD, 0x00, IDS[i], (uint8_t)(REPLY_LEN - 7), 0, DXL2_INST_STATUS, 0 };
-        memcpy(r, head, sizeof head);
-        uint8_t *p = r + sizeof head;   /* the parameters, from Torque Enable (64) on */
-        p[0] = 1;
-        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR + 1] = 0x08;   /* 2048 */
-        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR] = 120;
-        p[MODEL_DXL_PRESENT_TEMPERATURE - SBUS2_STATUS_ADDR] = 30;
-        const uint16_t crc = dxl2_crc(0, r, REPLY_LEN - 2);
-        r[REPLY_LEN - 2] = (uint8_t)crc;
-        r[REPLY_LEN - 1] = (uint8_t)(crc >> 8);
-    }
+    for (int i = 0; i < SBUS_SERVOS; ++i) xseries_reply(replies[i], IDS[i], 2048u);
 }
 
 static uint32_t time_us(void *ctx) { (void)ctx; return now; }

@@ -29,7 +29,8 @@ static uint8_t imu_regs[128];
 static char link_in[256];
 static size_t link_len, link_pos;
 #if MODEL_DXL_PROTOCOL == 2u
-#define REPLY_LEN (DXL2_STATUS_MIN_LEN + SBUS2_STATUS_LEN)
+#include "xseries_reply.h"
+#define REPLY_LEN XSERIES_REPLY_LEN
 #else
 #define REPLY_LEN (DXL_STATUS_MIN_LEN + SBUS_STATUS_LEN)
 #endif
@@ -59,25 +60,10 @@ static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (vo
  * the goals change: composing it is the servo's work, not the firmware's. */
 static const uint8_t IDS[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
 #if MODEL_DXL_PROTOCOL == 2u
-/* Protocol 2.0 (X-series): Torque Enable .. Present Temperature, torque on, 12.0 V */
+/* Protocol 2.0 (X-series): Torque Enable .. Present Temperature (xseries_reply.h) */
 static void build_replies(const uint16_t position[SBUS_SERVOS])
 {
-    for (int i = 0; i < SBUS_SERVOS; ++i) {
-        uint8_t *r = replies[i];
-        memset(r, 0, REPLY_LEN);
-        const uint8_t head[] = { 0xFF, 0xFF, 0xFD, 0x00, IDS[i], (uint8_t)(REPLY_LEN - 7), (uint8_t)((REPLY_LEN - 7) >> 8),
-                                 DXL2_INST_STATUS, 0 };
-        memcpy(r, head, sizeof head);
-        uint8_t *p = r + sizeof head;
-        p[0] = 1u;                                                        /* Torque Enable */
-        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR] = (uint8_t)position[i];
-        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR + 1] = (uint8_t)(position[i] >> 8);
-        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR] = 120u;
-        p[MODEL_DXL_PRESENT_TEMPERATURE - SBUS2_STATUS_ADDR] = 30u;
-        const uint16_t crc = dxl2_crc(0, r, REPLY_LEN - 2);   /* (no FF FF FD in it: nothing to stuff) */
-        r[REPLY_LEN - 2] = (uint8_t)crc;
-        r[REPLY_LEN - 1] = (uint8_t)(crc >> 8);
-    }
+    for (int i = 0; i < SBUS_SERVOS; ++i) xseries_reply(replies[i], IDS[i], position[i]);
 }
 #else
 /* Protocol 1.0 (AX-12A): Torque Limit .. */

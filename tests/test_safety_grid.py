@@ -17,7 +17,7 @@ import arm_spec
 import oracles
 from conftest import ROOT
 from oracles import check_pose, servo_path
-from test_xseries_board import xm430_folder
+from test_xseries_board import UNIT_RAD as XM430_UNIT_RAD, xm430_folder
 from uavarm.build import cbuild, firmware, generated
 from uavarm.model import collision, config, kinematics
 
@@ -214,8 +214,7 @@ def servo_moves_as_the_simulator_s(harness, simulator, speed_register, goal_rang
         np.testing.assert_allclose(shafts, ref, atol=0.02, err_msg=f"lag {lag}, {volts} V")
 
 
-AX12_UNIT_RAD = math.radians(300.0) / 1023        # AX-12A e-manual: 1023 units over 300 deg
-XM430_UNIT_RAD = 2 * math.pi / 4096               # XM430-W350 e-manual: 4096 units a turn
+AX12_UNIT_RAD = math.radians(arm_spec.AX12_RANGE_DEG) / arm_spec.AX12_UNITS_MAX   # AX-12A e-manual
 
 
 def units_to_joints(m, units, unit_rad):

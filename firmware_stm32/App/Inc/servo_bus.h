@@ -180,8 +180,9 @@ typedef struct {
     /* Protocol 2.0 (X-series) only (servo_bus2.c) */
     uint8_t refit_steps;                /* the refit writes still to send to servo refit_servo (bits) */
     uint8_t refit_servo;
-    uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position, */
-    uint8_t sync2_len;                  /* its constant bytes built once at init; 0 if the ids cannot be sent */
+    uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position (head
+                                           and IDs built once at init, the values per command) */
+    uint8_t sync2_len;                  /* its length, 0 if the ids cannot be sent */
     uint16_t sync2_crc0;                /* the CRC of its bytes before the first ID */
     uint8_t read2_pkt[SBUS_SERVOS][SBUS2_READ_LEN];   /* each servo's status READ, built once at init */
     uint8_t read2_len[SBUS_SERVOS];     /* its length, 0 if the id cannot be sent */
