@@ -8,6 +8,7 @@ figures of merit.
 """
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -235,6 +236,13 @@ XM430_EDITS = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.rang
                "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
 
 
+def xseries_reply_bytes() -> int:
+    """The X-series status reply's length: the status packet's 11 bytes around the driver's
+    SBUS2_STATUS_LEN parameters."""
+    text = (firmware.APP / "Inc" / "servo_bus.h").read_text()
+    return 11 + int(re.search(r"#define SBUS2_STATUS_LEN (\d+)", text).group(1))
+
+
 def xseries_bus(n=9):
     """The X-series bus driver's work per command (bench/sbus2_bench.c), built from the model
     file edited into an XM430-W350 arm."""
@@ -254,7 +262,7 @@ def xseries_bus(n=9):
     if not (idle.ret and run.ret):
         raise SystemExit("X-series bus bench: a command went without its SYNC_WRITE or status reading")
     print(f"\nX-series bus driver (servo_bus2.c, XM430-W350 model), per command: SYNC_WRITE built and sent, "
-          f"status READ sent, its 94-byte reply checked and taken: {(run.insns - idle.insns) / n:.0f} insns, "
+          f"status READ sent, its {xseries_reply_bytes()}-byte reply checked and taken: {(run.insns - idle.insns) / n:.0f} insns, "
           f"{(run.cycles - idle.cycles) / n:.0f} est. cycles, {run.stack_bytes} bytes of stack.")
 
 

@@ -60,7 +60,7 @@ static bool link_write(void *ctx, const uint8_t *buf, size_t n) { (void)ctx; (vo
  * the goals change: composing it is the servo's work, not the firmware's. */
 static const uint8_t IDS[SBUS_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
 #if MODEL_DXL_PROTOCOL == 2u
-/* Protocol 2.0 (X-series): Torque Enable .. Present Temperature (xseries_reply.h) */
+/* Protocol 2.0 (X-series): the status map's reading (xseries_reply.h) */
 static void build_replies(const uint16_t position[SBUS_SERVOS])
 {
     for (int i = 0; i < SBUS_SERVOS; ++i) xseries_reply(replies[i], IDS[i], position[i]);

@@ -121,6 +121,9 @@ _X_REGISTERS = {
     "PRESENT_POSITION": Register(132, 4, "Present Position"),
     "PRESENT_VOLTAGE": Register(144, 2, "Present Input Voltage"),
     "PRESENT_TEMPERATURE": Register(146, 1, "Present Temperature"),
+    # the first of 28 (2 bytes each, RAM: back at their initial values after a power cycle)
+    "INDIRECT_ADDRESS": Register(168, 2, "Indirect Address 1"),
+    "INDIRECT_DATA": Register(224, 1, "Indirect Data 1"),
 }
 _X_BAUD_RULE = "9600, 57600, 115200, 1M, 2M, 3M, 4M or 4.5M bit/s (Baud Rate register n = 0..7)"
 

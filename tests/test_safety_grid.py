@@ -112,6 +112,7 @@ def run_grid(harness, start, targets, tilts, ticks, physics, out):
                     ffi.from_buffer("float[]", tilts), len(tilts), ticks, physics[0], physics[1], out.c)
     assert out.c.n_goals < out.c.cap_goals and out.c.n_shafts < out.c.cap_shafts
     n, k = out.c.n_goals, out.c.n_shafts
+    assert out.c.readings >= n, ("each goal is followed by a status reading the driver takes", out.c.readings, n)
     return out.goals[:n].astype(np.float64), out.goal_run[:n], out.shafts[:k].astype(np.float64), out.c.refused
 
 

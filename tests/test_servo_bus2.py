@@ -46,6 +46,7 @@ TABLE = {"return_delay_time": (9, 1), "drive_mode": (10, 1), "operating_mode": (
          "hardware_error_status": (70, 1), "goal_pwm": (100, 2), "profile_acceleration": (108, 4), "profile_velocity": (112, 4),
          "goal_position": (116, 4), "present_current": (126, 2), "present_velocity": (128, 4),
          "present_position": (132, 4), "present_input_voltage": (144, 2), "present_temperature": (146, 1)}
+INDIRECT_ADDRESS, INDIRECT_DATA = 168, 224   # Indirect Address 1 (2 bytes each), Indirect Data 1
 OVERHEATING = 0x04                # Hardware Error Status bit 2
 ALERT = 0x80                      # status error byte bit 7
 
@@ -216,20 +217,21 @@ def test_power_up_configures_every_servo_and_runs(rig_parts):
     first = rig.sent[0][0]
     assert first >= model.servo_boot_time - 1e-9, "nothing before the servos' boot time"
     cfg = rig.packets()
-    # servo by servo: a READ of what it holds, the WRITEs, a READ back
+    # servo by servo: a READ of what it holds, the WRITEs, a READ back, a READ of the status
     per_servo = [[p for p in cfg if p[0] == id_] for id_ in rig.ids]
     assert [p[0] for p in cfg] == [p[0] for g in per_servo for p in g], "servos interleaved"
     for j, group in enumerate(per_servo):
-        assert group[0][1] == INST_READ and group[-1][1] == INST_READ
-        assert all(p[1] == INST_WRITE for p in group[1:-1])
-        for read in (group[0], group[-1]):
+        assert [p[1] for p in group[:1] + group[-2:]] == [INST_READ] * 3
+        assert all(p[1] == INST_WRITE for p in group[1:-2])
+        for read in (group[0], group[-2]):
             addr, n = int.from_bytes(read[2][:2], "little"), int.from_bytes(read[2][2:4], "little")
             assert addr <= 9 and addr + n >= 147, "the reads cover every register written and the status"
+        assert group[-1][2] == bytes([INDIRECT_DATA, 0, 16, 0]), "the status through its map"
         s = rig.servo(j)
         want = wanted(model, j)
         assert {k: s.register(k) for k in want} == want
         # an EEPROM write only where the servo held something else
-        for _, _, params, _ in group[1:-1]:
+        for _, _, params, _ in group[1:-2]:
             addr, data = int.from_bytes(params[:2], "little"), params[2:]
             if addr < EEPROM_END:
                 assert before[j][addr:addr + len(data)] != data, (addr, data.hex(" "))
@@ -322,7 +324,7 @@ def test_each_command_one_sync_write_and_one_status_read_and_the_goals_are_reach
     for pkts in by_tick.values():
         assert [p[1] for p in pkts] == [INST_SYNC_WRITE, INST_READ], [p[3].hex(" ") for p in pkts]
         sync, read = pkts
-        assert sync[0] == BROADCAST and read[2] == bytes([64, 0, 83, 0]), "Torque Enable .. Present Temperature"
+        assert sync[0] == BROADCAST and read[2] == bytes([INDIRECT_DATA, 0, 16, 0]), "the status map's 16 bytes"
         read_ids.append(read[0])
     k = rig.ids.index(read_ids[0])
     assert read_ids == [rig.ids[(k + n) % 3] for n in range(len(read_ids))], "round robin"
@@ -397,6 +399,54 @@ def test_bus_time_per_command_is_bounded(rig_parts):
     assert worst * 1e6 <= bound < US / model.sample_rate
 
 
+def table_bytes(*names):
+    """Each byte's address of the named registers (the e-manual's table), in order."""
+    return [a for n in names for a in range(TABLE[n][0], TABLE[n][0] + TABLE[n][1])]
+
+
+def test_the_status_map_points_at_the_registers_read_and_reads_them(rig_parts):
+    """Indirect Address 1..16 hold the addresses of Torque Enable, Status Return Level, Hardware
+    Error Status, Present Current, Velocity, Position, Input Voltage and Temperature; what the
+    driver makes of a reading through them is what those registers hold (the servos at
+    different supplies, temperatures, loads and speeds)."""
+    rig = running_rig(rig_parts)
+    model = rig.model
+    order = table_bytes("torque_enable", "status_return_level", "hardware_error_status", "present_current",
+                        "present_velocity", "present_position", "present_input_voltage", "present_temperature")
+    for j in range(3):
+        assert [rig.servo(j).register(f"indirect_address_{k + 1}") for k in range(16)] == order
+        rig.servo(j).voltage = 11.3 + 0.2 * j
+        rig.servo(j).temperature = 41 + j
+        rig.servo(j).load_torque = (-0.4, 0.25, 1.1)[j]
+    held = {}   # each servo's registers as its latest READ found them
+
+    def snapshot(j, read):
+        def read_and_keep(addr, n):
+            answer = read(addr, n)
+            s = rig.servo(j)
+            held[j] = {k: s.register(k) for k in ("present_position", "present_velocity", "present_current",
+                                                   "present_input_voltage", "present_temperature")}
+            return answer
+        return read_and_keep
+    for j in range(3):
+        rig.servo(j)._read = snapshot(j, rig.servo(j)._read)
+    goal = goals_in_range(model, (0.2, 0.8, 0.35))
+    rig.on_tick = lambda r: r.command(goal, [131] * 3)
+    for _ in range(30):   # while moving: each reading against the registers it was read from
+        reads = rig.sbus.status_reads
+        assert rig.run_until(lambda: rig.sbus.status_reads != reads, 0.02)
+        j = rig.sbus.last_read
+        c, want = rig.counters(j), held[j]
+        assert c.present_position == want["present_position"]
+        velocity = want["present_velocity"]
+        assert c.present_speed == min(abs(velocity), 1023) | (0x400 if velocity < 0 else 0)
+        assert c.present_current == want["present_current"] != 0
+        assert c.present_voltage == want["present_input_voltage"] == round(rig.servo(j).voltage * 10)
+        assert c.present_temperature == want["present_temperature"] == 41 + j
+        assert c.hardware_error == 0 and c.last_error == 0
+    assert rig.sbus.remaps == 0
+
+
 # ---------------------------------------------------------------- faults
 
 def test_a_brown_out_is_seen_and_the_servo_refit_holding_where_it_stands(rig_parts):
@@ -417,14 +467,45 @@ def test_a_brown_out_is_seen_and_the_servo_refit_holding_where_it_stands(rig_par
     sagged = goal[1] - 40
     s.turn_by_hand(sagged)
     rig.on_tick = lambda r: r.lib.sbus_read(r.sbus)     # nothing commanded: read only
-    assert rig.run_until(lambda: rig.sbus.resets == 1, 0.2)
+    taken = []
+    reads = rig.counters(1).reads
+
+    def watch():
+        if rig.counters(1).reads != reads + len(taken):
+            taken.append(rig.counters(1).present_position)
+        return rig.sbus.resets == 1
+    assert rig.run_until(watch, 0.2)
     assert rig.counters(1).resets == 1
+    # its status map was lost with the RAM: that reading (every byte 0) was not taken, the map
+    # was written again and the servo read again, so the position it holds by is where it sags
+    assert taken == [sagged] and rig.sbus.remaps == 1
     assert rig.run_until(lambda: not rig.sbus.refit and not rig.sbus.refitting, 0.05)
     rig.run(0.1)
     assert s.register("torque_enable") == 1 and s.register("status_return_level") == 1
     assert s.register("goal_position") == sagged and abs(s.position - sagged) <= 1
-    assert rig.sbus.refits == 1 and rig.sbus.resets == 1
+    assert rig.sbus.refits == 1 and rig.sbus.resets == 1 and rig.sbus.remaps == 1
     assert [rig.counters(j).resets for j in range(3)] == [0, 1, 0]
+
+
+def test_a_servo_whose_status_map_will_not_hold_is_failed_not_read(rig_parts):
+    """A servo whose READs through the map keep answering with its initial values (the map's
+    WRITEs lost): none of those readings is taken (its position would be 0), it is read
+    again once, then marked failed for the round as a silent servo is, and the other servos
+    are read as before."""
+    rig = running_rig(rig_parts)
+    rig.on_tick = lambda r: r.lib.sbus_read(r.sbus)
+    rig.run(0.05)
+    s = rig.servo(0)
+    position = rig.counters(0).present_position
+    execute = s._execute
+    s._execute = lambda inst, params: (0, b"") if inst == INST_WRITE else execute(inst, params)
+    s.power_on()
+    reads = [rig.counters(j).reads for j in range(3)]
+    rig.run(0.2)
+    c = rig.counters(0)
+    assert c.reads == reads[0] and c.present_position == position and c.failed
+    assert rig.sbus.remaps >= 2 and c.retries >= 1 and c.timeouts == 0
+    assert all(rig.counters(j).reads > reads[j] + 3 for j in (1, 2))
 
 
 def test_a_hardware_error_is_counted_and_is_not_a_brown_out(rig_parts):

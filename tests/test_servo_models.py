@@ -42,6 +42,7 @@ X_TABLE = {
     "Goal Velocity": (104, 4), "Profile Acceleration": (108, 4), "Profile Velocity": (112, 4),
     "Goal Position": (116, 4), "Moving": (122, 1), "Present PWM": (124, 2), "Present Velocity": (128, 4),
     "Present Position": (132, 4), "Present Input Voltage": (144, 2), "Present Temperature": (146, 1),
+    "Indirect Address 1": (168, 2), "Indirect Data 1": (224, 1),
 }
 XL430_TABLE = {**X_TABLE, "Present Load": (126, 2)}
 XM430_TABLE = {**X_TABLE, "Current Limit": (38, 2), "Goal Current": (102, 2), "Present Current": (126, 2)}

@@ -69,9 +69,9 @@ static uint32_t le32(const uint8_t *b)
     return (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 | (uint32_t)b[3] << 24;
 }
 
-/* A SYNC_WRITE of Profile Velocity and Goal Position sets speeds and goals; a READ of Torque
- * Enable .. Present Temperature (64..146) is answered at once with the torque on, where the
- * shaft stands (rounded to a unit) and the supply. */
+/* A SYNC_WRITE of Profile Velocity and Goal Position sets speeds and goals; the status READ
+ * (through the status map, servo_bus.h's SBUS2_AT_*) is answered at once with the torque on,
+ * Status Return Level 1, where the shaft stands (rounded to a unit) and the supply. */
 static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
 {
     (void)ctx;
@@ -88,15 +88,16 @@ static bool servo_send(void *ctx, const uint8_t *buf, size_t n)
         memset(r, 0, sizeof servos.reply);
         const uint8_t head[] = { 0xFF, 0xFF, 0xFD, 0x00, buf[4], (uint8_t)(REPLY_LEN - 7), 0, DXL2_INST_STATUS, 0 };
         memcpy(r, head, sizeof head);
-        uint8_t *p = r + sizeof head;          /* from Torque Enable (64) on */
+        uint8_t *p = r + sizeof head;
         const uint16_t at = (uint16_t)lroundf(servos.shaft[i < 0 ? 0 : i]);
         const uint16_t volts = (uint16_t)lroundf(servos.volts * 10.0f);
-        p[0] = 1;                              /* Torque Enable */
-        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR] = (uint8_t)at;
-        p[MODEL_DXL_PRESENT_POSITION - SBUS2_STATUS_ADDR + 1] = (uint8_t)(at >> 8);
-        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR] = (uint8_t)volts;
-        p[MODEL_DXL_PRESENT_VOLTAGE - SBUS2_STATUS_ADDR + 1] = (uint8_t)(volts >> 8);
-        p[MODEL_DXL_PRESENT_TEMPERATURE - SBUS2_STATUS_ADDR] = 30;
+        p[SBUS2_AT_TORQUE_ENABLE] = 1;
+        p[SBUS2_AT_STATUS_RETURN_LEVEL] = 1;
+        p[SBUS2_AT_POSITION] = (uint8_t)at;
+        p[SBUS2_AT_POSITION + 1] = (uint8_t)(at >> 8);
+        p[SBUS2_AT_VOLTAGE] = (uint8_t)volts;
+        p[SBUS2_AT_VOLTAGE + 1] = (uint8_t)(volts >> 8);
+        p[SBUS2_AT_TEMPERATURE] = 30;
         const uint16_t crc = dxl2_crc(0, r, REPLY_LEN - 2);   /* (nothing in it to stuff) */
         r[REPLY_LEN - 2] = (uint8_t)crc;
         r[REPLY_LEN - 1] = (uint8_t)(crc >> 8);
@@ -212,6 +213,7 @@ static bool arm_at(app_t *app, const float start[3], float roll, float pitch)
  * with the run's number. */
 static void run_ticks(app_t *app, uint32_t ticks, grid_out_t *out, uint32_t run_no)
 {
+    const uint32_t readings = app->bus.status_reads;
     for (uint32_t k = 0; k < ticks; ++k) {
         (void)track_update(&app->track, &app->bus, servos.now_us);
         app->bus.command_pending = false;
@@ -234,6 +236,7 @@ static void run_ticks(app_t *app, uint32_t ticks, grid_out_t *out, uint32_t run_
             }
         }
     }
+    out->readings += app->bus.status_reads - readings;
 }
 
 void safety_grid(const float start[3], const float *targets, size_t n_targets, const float *tilts, size_t n_tilts,
@@ -242,7 +245,7 @@ void safety_grid(const float start[3], const float *targets, size_t n_targets, c
     static app_t app;
     uint32_t run_no = 0;
     out->n_goals = out->n_shafts = 0;
-    out->refused = 0;
+    out->refused = out->readings = 0;
     servos.lag_s = lag_s;
     servos.volts = volts;
     for (size_t t = 0; t < n_tilts; ++t) {

@@ -13,6 +13,7 @@ typedef struct {
     uint32_t *shaft_run;
     size_t cap_shafts, n_shafts;
     uint32_t refused;      /* runs whose route was refused */
+    uint32_t readings;     /* status readings the driver took (each sent goal is followed by one) */
 } grid_out_t;
 
 /* The arm at `start` (a safe pose), the board tilted by each (roll, pitch) of `tilts`: for

@@ -17,7 +17,7 @@ Where the e-manual is silent this simulator chooses, and says so:
   Data Length error; a value outside the register's range the Data Range error; a Goal
   Position outside Min/Max Position Limit the Data Limit error.
 - READ of addresses the table does not hold (reserved ones inside it) reads 0; past its end
-  (address 147) gives the Access error.
+  (address 252) gives the Access error.
 - Hardware Error Status collects the lasting conditions (input voltage outside its limits,
   temperature above Temperature Limit, a load beyond the stall torque at the supply) whose bit
   is set in Shutdown (default 52: overheating, electrical shock, overload; not the voltage).
@@ -29,6 +29,11 @@ Where the e-manual is silent this simulator chooses, and says so:
   modes the shaft holds. A new goal ahead keeps the profile's speed (velocity override); one
   behind it starts the profile again from rest. The shaft follows the profile through the
   first-order lag in substeps of at most 1 ms.
+- Indirect Address 1..28 (168..223) and Indirect Data 1..28 (224..251) are modelled for reading:
+  Indirect Data k reads the byte at the address Indirect Address k holds (its initial value
+  224 + k - 1 is Indirect Data k itself, which holds 0). Writing through Indirect Data is not
+  modelled (the Access error); Indirect Address takes any RAM address (64..661), and an address
+  this table does not hold reads 0.
 - In a SYNC_READ the k-th listed servo answers after the k servos before it, each taking its
   Return Delay Time and a status packet with the data asked for (no stuffing assumed in theirs).
 - Broadcast PING is answered after Return Delay Time: the e-manual's order among several
@@ -67,8 +72,11 @@ HW_OVERHEATING = 0x04
 HW_ELECTRICAL_SHOCK = 0x10
 HW_OVERLOAD = 0x20
 
-TABLE_SIZE = 147                       # addresses 0..146 (Present Temperature is the last)
+TABLE_SIZE = 252                       # addresses 0..251 (Indirect Data 28 is the last)
 EEPROM_END = 64                        # Torque Enable(64) opens the RAM area
+INDIRECT_ADDRESS = 168                 # Indirect Address 1..28, 2 bytes each
+INDIRECT_DATA = 224                    # Indirect Data 1..28
+INDIRECTS = 28
 UNITS_PER_TURN = 4096
 RPM_PER_VELOCITY_UNIT = 0.229          # Profile Velocity, Velocity Limit, Present Velocity
 RPM2_PER_ACCELERATION_UNIT = 214.577   # Profile Acceleration, rev/min^2
@@ -145,6 +153,9 @@ def registers(model: Model) -> tuple[Register, ...]:
         Register(132, 4, "present_position", None, True),
         Register(144, 2, "present_input_voltage", None),
         Register(146, 1, "present_temperature", None),
+        *(Register(INDIRECT_ADDRESS + 2 * k, 2, f"indirect_address_{k + 1}", (EEPROM_END, 661))
+          for k in range(INDIRECTS)),
+        *(Register(INDIRECT_DATA + k, 1, f"indirect_data_{k + 1}", None) for k in range(INDIRECTS)),
     )
 
 
@@ -343,6 +354,8 @@ class XServo:
         self.table[EEPROM_END:] = bytes(TABLE_SIZE - EEPROM_END)
         self.set_register("status_return_level", 2)
         self.set_register("goal_pwm", self.register("pwm_limit"))
+        for k in range(INDIRECTS):
+            self.set_register(f"indirect_address_{k + 1}", INDIRECT_DATA + k)
         self._profile, self._profile_speed = self._pos, 0.0
         self.set_register("goal_position", self._quantised())
         self._rx.clear()
@@ -463,9 +476,18 @@ class XServo:
     def _read(self, addr: int, n: int) -> tuple[int, bytes]:
         if n == 0 or addr + n > TABLE_SIZE:
             return ERR_ACCESS, b""
-        if addr < 128 and addr + n > 126:
+        where = [self._indirect(a) for a in range(addr, addr + n)]
+        if any(126 <= a < 128 for a in where):
             self._latch_current()
-        return 0, bytes(self.table[addr:addr + n])
+        return 0, bytes(self.table[a] if a < TABLE_SIZE else 0 for a in where)
+
+    def _indirect(self, addr: int) -> int:
+        """The address a read of addr reads: Indirect Data k's is Indirect Address k's value
+        (its own address while at the initial value)."""
+        if not INDIRECT_DATA <= addr < INDIRECT_DATA + INDIRECTS:
+            return addr
+        target = self.register(f"indirect_address_{addr - INDIRECT_DATA + 1}")
+        return addr if target == addr else target
 
     def _sync_read(self, params: bytes) -> Reply | None:
         if len(params) < 5:

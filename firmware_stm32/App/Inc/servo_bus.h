@@ -41,13 +41,23 @@
  *   Limit, Max/Min Voltage Limit and PWM Limit at the model's factory values, Velocity Limit 1023 (the top
  *   of the model's speeds) with Max/Min Position Limit = the joint limits, Shutdown 0x34; the
  *   Torque Enable 0 first if it is on (the EEPROM is locked while it is on); in RAM Status Return
- *   Level 1, Goal PWM (the torque cap), Profile Acceleration 0 (no ramp) with Profile Velocity
- *   at the park speed, and Torque Enable 1 (0: sbus_power_limp); then reads it all back.
+ *   Level 1, the status map (below), Goal PWM (the torque cap), Profile Acceleration 0 (no ramp)
+ *   with Profile Velocity at the park speed, and Torque Enable 1 (0: sbus_power_limp); then reads
+ *   it all back, and reads the status once through the map (where the arm is).
+ * - The status map: Indirect Address 1..16 point at Torque Enable, Status Return Level, Hardware
+ *   Error Status, Present Current (or Load), Velocity, Position, Input Voltage and Temperature,
+ *   so one READ of Indirect Data 1..16 (224..239) gets them in 16 bytes instead of the 83 of
+ *   Torque Enable .. Present Temperature (the reply's CRC and stuffing scan are the tick's
+ *   largest costs on this bus). The map is RAM: a servo that lost its power reads it back at
+ *   its initial values, every byte 0. A servo that answers a READ has Status Return Level 1 or
+ *   2, so a reading with 0 there is not the servo's state: nothing of it is taken, the map is
+ *   written again (remaps) and the servo read again at once; a servo that still reads so after
+ *   SBUS_READ_RETRIES is marked failed for this round, as one that does not answer.
  * - RUNNING: the SYNC_WRITE holds Profile Velocity (the speed, in 0.229 rpm) and Goal Position
- *   per servo; the status READ covers Torque Enable .. Present Temperature (64..146). A servo
- *   read with Torque Enable 0 and no hardware error has lost its RAM: it is refit (four
- *   WRITEs: Status Return Level, Goal PWM, holding where it stands, the torque on). Torque Enable 0 with
- *   Hardware Error Status set is the servo's own shutdown (it needs a REBOOT): not a reset.
+ *   per servo; the status READ is the map's. A servo read with Torque Enable 0 and no hardware
+ *   error has lost its RAM: it is refit (four WRITEs: Status Return Level, Goal PWM, holding
+ *   where it stands, the torque on). Torque Enable 0 with Hardware Error Status set is the
+ *   servo's own shutdown (it needs a REBOOT): not a reset.
  * - Replies are matched and checked as above: read straight into a buffer while every byte
  *   fits the expected status packet (header, ID, LEN, STATUS instruction, then its CRC and no
  *   FF FF FD to unstuff), else through the resynchronising parser of dxl_protocol2.h.
@@ -83,10 +93,18 @@ extern "C" {
 #define SBUS_STATUS_LEN 12         /* RAM (torque limit back at Max Torque) is seen at its next reading */
 #define SBUS_VERIFY_ADDR 5         /* return delay .. present temperature: the configuration */
 #define SBUS_VERIFY_LEN 39         /* and the first status reading (where the arm is) */
-#define SBUS_TX_MAX 32
+#define SBUS_TX_MAX 48            /* the configuration's longest WRITE: the status map, 44 bytes */
 #define SBUS_RX_MAX 48
-#define SBUS2_STATUS_ADDR 64       /* Protocol 2.0: Torque Enable .. Present Temperature */
-#define SBUS2_STATUS_LEN 83
+#define SBUS2_STATUS_ADDR 224      /* Protocol 2.0: Indirect Data 1..16, the status map */
+#define SBUS2_STATUS_LEN 16
+#define SBUS2_AT_TORQUE_ENABLE 0   /* where each register stands in a status reading */
+#define SBUS2_AT_STATUS_RETURN_LEVEL 1   /* (0 in a reply: the map was lost with the RAM) */
+#define SBUS2_AT_HARDWARE_ERROR 2
+#define SBUS2_AT_CURRENT 3         /* Present Current (XM430) or Present Load (XL430) */
+#define SBUS2_AT_VELOCITY 5
+#define SBUS2_AT_POSITION 9
+#define SBUS2_AT_VOLTAGE 13
+#define SBUS2_AT_TEMPERATURE 15
 #define SBUS2_VERIFY_ADDR 9        /* Return Delay Time .. Present Temperature */
 #define SBUS2_VERIFY_LEN 138
 #define SBUS2_SYNC_MAX 41          /* its SYNC_WRITE (never stuffed: servo_bus2.c) */
@@ -180,6 +198,9 @@ typedef struct {
     /* Protocol 2.0 (X-series) only (servo_bus2.c) */
     uint8_t refit_steps;                /* the refit writes still to send to servo refit_servo (bits) */
     uint8_t refit_servo;
+    uint8_t remap;                      /* servos read with their status map lost, to write it again (bits) */
+    bool remapping;                     /* that write is on the wire */
+    uint32_t remaps;                    /* status maps written again, in all */
     uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position (head
                                            and IDs built once at init, the values per command) */
     uint8_t sync2_len;                  /* its length, 0 if the ids cannot be sent */

@@ -24,6 +24,7 @@ enum { NOT_DONE, DONE_OK, DONE_TIMEOUT };   /* how a transaction stands */
 #define X_PROFILE_ACCELERATION MODEL_DXL_PROFILE_ACCELERATION   /* then Profile Velocity, Goal Position */
 #define X_PROFILE_VELOCITY MODEL_DXL_GOAL_SPEED
 #define X_GOAL_POSITION MODEL_DXL_GOAL_POSITION
+#define X_INDIRECT_ADDRESS MODEL_DXL_INDIRECT_ADDRESS       /* Indirect Address 1 (of 28, 2 bytes each) */
 /* the registers each write and read spans lie next to each other */
 typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
                              && MODEL_DXL_MAX_VOLTAGE_LIMIT == X_TEMPERATURE_LIMIT + 1u
@@ -33,11 +34,29 @@ typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
                              && MODEL_DXL_MIN_POSITION_LIMIT == X_VELOCITY_LIMIT + 8u
                              && X_PROFILE_VELOCITY == X_PROFILE_ACCELERATION + 4u
                              && X_GOAL_POSITION == X_PROFILE_VELOCITY + 4u
-                             && SBUS2_STATUS_ADDR == X_TORQUE_ENABLE
+                             && SBUS2_STATUS_ADDR == MODEL_DXL_INDIRECT_DATA
                              && SBUS2_VERIFY_ADDR == X_RETURN_DELAY
-                             && SBUS2_STATUS_ADDR + SBUS2_STATUS_LEN == MODEL_DXL_PRESENT_TEMPERATURE + 1u
                              && SBUS2_VERIFY_ADDR + SBUS2_VERIFY_LEN == MODEL_DXL_PRESENT_TEMPERATURE + 1u
                              && MODEL_DXL_PRESENT_LOAD_SIZE == 2u && MODEL_DXL_PRESENT_VOLTAGE_SIZE == 2u) ? 1 : -1];
+
+/* The status map: the register behind each byte of a status reading (Indirect Address k
+ * points at STATUS_MAP[k - 1]), in the order of servo_bus.h's SBUS2_AT_* */
+#define BYTES2(a) (a), (a) + 1u
+#define BYTES4(a) (a), (a) + 1u, (a) + 2u, (a) + 3u
+static const uint16_t STATUS_MAP[SBUS2_STATUS_LEN] = {
+    X_TORQUE_ENABLE, X_STATUS_RETURN_LEVEL, X_HARDWARE_ERROR, BYTES2(MODEL_DXL_PRESENT_LOAD),
+    BYTES4(MODEL_DXL_PRESENT_SPEED), BYTES4(MODEL_DXL_PRESENT_POSITION), BYTES2(MODEL_DXL_PRESENT_VOLTAGE),
+    MODEL_DXL_PRESENT_TEMPERATURE
+};
+typedef char status_map_order[(SBUS2_AT_STATUS_RETURN_LEVEL == SBUS2_AT_TORQUE_ENABLE + 1
+                               && SBUS2_AT_HARDWARE_ERROR == SBUS2_AT_STATUS_RETURN_LEVEL + 1
+                               && SBUS2_AT_CURRENT == SBUS2_AT_HARDWARE_ERROR + 1
+                               && SBUS2_AT_VELOCITY == SBUS2_AT_CURRENT + 2
+                               && SBUS2_AT_POSITION == SBUS2_AT_VELOCITY + 4
+                               && SBUS2_AT_VOLTAGE == SBUS2_AT_POSITION + 4
+                               && SBUS2_AT_TEMPERATURE == SBUS2_AT_VOLTAGE + 2
+                               && SBUS2_STATUS_LEN == SBUS2_AT_TEMPERATURE + 1
+                               && SBUS2_STATUS_LEN <= 28) ? 1 : -1];   /* (Indirect Address 1..28) */
 
 #define STATUS_RETURN_READS 1u        /* answer PING and READ only */
 #define POSITION_CONTROL 3u           /* Operating Mode */
@@ -79,18 +98,15 @@ typedef char packet_sizes[(READ_LEN == SBUS2_READ_LEN && SYNC_LEN == SBUS2_SYNC_
 typedef char sync_write_never_stuffed[(MODEL_DXL_POSITION_MAX < 0xFF00u && MODEL_DXL_SPEED_MAX < 0xFF00u
                                        && X_PROFILE_VELOCITY < 0xFF00u) ? 1 : -1];
 
-enum { CFG_READ, CFG_WRITE, CFG_VERIFY };   /* configuration steps of each servo */
+enum { CFG_READ, CFG_WRITE, CFG_VERIFY, CFG_STATUS };   /* configuration steps of each servo */
 /* its writes, in order (bits of sbus_t.cfg_mask): the torque off if the EEPROM must be
  * written (it is locked while the torque is on), the EEPROM ones, then the RAM ones */
-enum { W_TORQUE_OFF, W_MODES, W_SAFETY, W_LIMITS, W_SHUTDOWN, W_SRL, W_GOAL_PWM, W_PROFILE, W_TORQUE_ENABLE,
-       CFG_WRITES };
+enum { W_TORQUE_OFF, W_MODES, W_SAFETY, W_LIMITS, W_SHUTDOWN, W_SRL, W_MAP, W_GOAL_PWM, W_PROFILE,
+       W_TORQUE_ENABLE, CFG_WRITES };
 #define EEPROM_WRITES ((1u << W_MODES) | (1u << W_SAFETY) | (1u << W_LIMITS) | (1u << W_SHUTDOWN))
 /* A servo found reset (its RAM back at the power-on values) is set up again by these. */
 enum { R_SRL, R_GOAL_PWM, R_HOLD, R_TORQUE_ON, REFIT_WRITES };
-#define WRITE_MAX 12u
-
-/* Offsets in a status reading (Torque Enable .. Present Temperature) */
-#define AT(reg) ((reg) - SBUS2_STATUS_ADDR)
+#define WRITE_MAX (2u * SBUS2_STATUS_LEN)   /* the status map */
 
 static const uint16_t MIN_LIMIT[SBUS_SERVOS] = { MODEL_SERVO1_CW_LIMIT, MODEL_SERVO2_CW_LIMIT, MODEL_SERVO3_CW_LIMIT };
 static const uint16_t MAX_LIMIT[SBUS_SERVOS] = { MODEL_SERVO1_CCW_LIMIT, MODEL_SERVO2_CCW_LIMIT, MODEL_SERVO3_CCW_LIMIT };
@@ -112,6 +128,12 @@ static void put32(uint8_t *p, uint32_t v)
     p[1] = (uint8_t)(v >> 8);
     p[2] = (uint8_t)(v >> 16);
     p[3] = (uint8_t)(v >> 24);
+}
+
+static void put16(uint8_t *p, uint16_t v)
+{
+    p[0] = (uint8_t)v;
+    p[1] = (uint8_t)(v >> 8);
 }
 
 static uint32_t get32(const uint8_t *p)
@@ -159,6 +181,8 @@ static void forget_servo_state(sbus_t *bus)
     bus->limp = bus->limp_pending = false;
     bus->refit = bus->refit_steps = 0;
     bus->refitting = false;
+    bus->remap = 0;
+    bus->remapping = false;
 }
 
 void sbus_power(sbus_t *bus, bool on)
@@ -378,7 +402,7 @@ static void flush_rx(sbus_t *bus)
 
 /* --------------------------------------------------------------- configuration */
 
-static const uint8_t WRITE_LEN[CFG_WRITES] = { 1u, 3u, 7u, 12u, 1u, 1u, 2u, 8u, 1u };
+static const uint8_t WRITE_LEN[CFG_WRITES] = { 1u, 3u, 7u, 12u, 1u, 1u, WRITE_MAX, 2u, 8u, 1u };
 
 /* Each write, its first register and its bytes for servo i (the torque off if the bus is limp). */
 static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[WRITE_MAX])
@@ -412,6 +436,9 @@ static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[
     case W_SRL:
         data[0] = STATUS_RETURN_READS;
         return X_STATUS_RETURN_LEVEL;
+    case W_MAP:
+        for (unsigned k = 0; k < SBUS2_STATUS_LEN; ++k) put16(data + 2u * k, STATUS_MAP[k]);
+        return X_INDIRECT_ADDRESS;
     case W_GOAL_PWM:
         data[0] = (uint8_t)(bus->torque_limit & 0xFFu);
         data[1] = (uint8_t)(bus->torque_limit >> 8);
@@ -426,12 +453,15 @@ static uint8_t write_of(const sbus_t *bus, unsigned w, unsigned i, uint8_t data[
     }
 }
 
-/* The writes whose registers differ, in a reading from Return Delay Time on (reply_params). */
+/* The writes whose registers differ, in a reading from Return Delay Time on (reply_params).
+ * (The status map lies past it: it is written at every configuration and proved by a reading
+ * through it.) */
 static uint16_t writes_needed(const sbus_t *bus, unsigned i)
 {
     uint16_t mask = 0;
     uint8_t data[WRITE_MAX];
     for (unsigned w = W_MODES; w < CFG_WRITES; ++w) {
+        if (w == W_MAP) continue;
         const uint8_t addr = write_of(bus, w, i, data);
         if (memcmp(bus->reply_params + (addr - SBUS2_VERIFY_ADDR), data, WRITE_LEN[w]) != 0) mask |= (uint16_t)(1u << w);
     }
@@ -443,9 +473,18 @@ static uint16_t writes_needed(const sbus_t *bus, unsigned i)
 
 static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p);
 
+/* Is a status reading the servo's state? A servo that answers a READ has Status Return Level
+ * 1 or 2: 0 there is its status map back at the initial values (the RAM lost with the power),
+ * every byte of the reading 0. */
+static bool mapped(const uint8_t *p)
+{
+    return p[SBUS2_AT_STATUS_RETURN_LEVEL] != 0u;
+}
+
 /* Per servo: read what it holds (Return Delay Time .. Present Temperature), write what
- * differs (EEPROM wears: nothing is rewritten at every enable), read it all back. A servo
- * that does not answer the first read gets every write. */
+ * differs (EEPROM wears: nothing is rewritten at every enable) and the status map, read it
+ * all back, then read the status through the map. A servo that does not answer the first
+ * read gets every write. */
 static void configure(sbus_t *bus)
 {
     const unsigned i = bus->cfg_servo;
@@ -458,6 +497,8 @@ static void configure(sbus_t *bus)
             const uint8_t addr = write_of(bus, w, i, data);
             const size_t len = dxl2_build_write(bus->tx, sizeof bus->tx, s->id, addr, data, WRITE_LEN[w]);
             (void)request(bus, bus->tx, len, REPLY_OPTIONAL, s, 0);
+        } else if (bus->cfg_step == CFG_STATUS) {
+            (void)request(bus, bus->read2_pkt[i], bus->read2_len[i], REPLY_REQUIRED, s, SBUS2_STATUS_LEN);
         } else {
             const size_t len = dxl2_build_read(bus->tx, sizeof bus->tx, s->id, SBUS2_VERIFY_ADDR, SBUS2_VERIFY_LEN);
             (void)request(bus, bus->tx, len, REPLY_REQUIRED, s, SBUS2_VERIFY_LEN);
@@ -468,8 +509,9 @@ static void configure(sbus_t *bus)
     if (how == NOT_DONE) return;
     switch (bus->cfg_step) {
     case CFG_READ:
-        bus->cfg_mask = how == DONE_OK ? writes_needed(bus, i) : (uint16_t)((1u << CFG_WRITES) - 1u);
-        bus->cfg_step = bus->cfg_mask ? CFG_WRITE : CFG_VERIFY;
+        bus->cfg_mask = how == DONE_OK ? (uint16_t)(writes_needed(bus, i) | 1u << W_MAP)
+                                       : (uint16_t)((1u << CFG_WRITES) - 1u);
+        bus->cfg_step = CFG_WRITE;
         return;
     case CFG_WRITE: {
         const unsigned w = (unsigned)__builtin_ctz(bus->cfg_mask);
@@ -481,8 +523,12 @@ static void configure(sbus_t *bus)
     default:
         break;
     }
-    if (how == DONE_OK && writes_needed(bus, i) == 0) {
-        take_status(bus, s, bus->reply_params + (SBUS2_STATUS_ADDR - SBUS2_VERIFY_ADDR));
+    if (how == DONE_OK && bus->cfg_step == CFG_VERIFY && writes_needed(bus, i) == 0) {
+        bus->cfg_step = CFG_STATUS;
+        return;
+    }
+    if (how == DONE_OK && bus->cfg_step == CFG_STATUS && mapped(bus->reply_params)) {
+        take_status(bus, s, bus->reply_params);
         bus->cfg_step = CFG_READ;
         bus->cfg_attempt = 0;
         if (++bus->cfg_servo == SBUS_SERVOS) enter(bus, SBUS_RUNNING);
@@ -508,22 +554,22 @@ static uint16_t ax_style(int32_t v)
     return (uint16_t)((magnitude > 1023u ? 1023u : magnitude) | (v < 0 ? 0x400u : 0u));
 }
 
-/* A status reading of Torque Enable .. Present Temperature. Torque Enable 0 while running,
+/* A status reading through the map (mapped). Torque Enable 0 while running,
  * with no hardware error: the servo lost its RAM (a supply dip resets it, torque off) and
  * goes limp; it is set up again at once (refit). (A hardware error turns the torque off
  * too: that servo stays off until rebooted, reported by its error byte's alert bit.) */
 static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
 {
-    const int32_t position = (int32_t)get32(p + AT(MODEL_DXL_PRESENT_POSITION));
-    const uint16_t volts = get16(p + AT(MODEL_DXL_PRESENT_VOLTAGE));
+    const int32_t position = (int32_t)get32(p + SBUS2_AT_POSITION);
+    const uint16_t volts = get16(p + SBUS2_AT_VOLTAGE);
     s->present_position = (uint16_t)(position < 0 ? 0u : position > (int32_t)MODEL_DXL_POSITION_MAX
                                       ? MODEL_DXL_POSITION_MAX : (uint32_t)position);
-    s->present_speed = ax_style((int32_t)get32(p + AT(MODEL_DXL_PRESENT_SPEED)));
-    s->present_current = (int16_t)get16(p + AT(MODEL_DXL_PRESENT_LOAD));
+    s->present_speed = ax_style((int32_t)get32(p + SBUS2_AT_VELOCITY));
+    s->present_current = (int16_t)get16(p + SBUS2_AT_CURRENT);
     s->present_load = ax_style(s->present_current);
     s->present_voltage = (uint8_t)(volts > 255u ? 255u : volts);
-    s->present_temperature = p[AT(MODEL_DXL_PRESENT_TEMPERATURE)];
-    s->hardware_error = p[AT(X_HARDWARE_ERROR)];
+    s->present_temperature = p[SBUS2_AT_TEMPERATURE];
+    s->hardware_error = p[SBUS2_AT_HARDWARE_ERROR];
     for (unsigned bit = 0; bit < 8u; ++bit) {
         if (s->hardware_error & (1u << bit)) s->hardware_error_bits[bit]++;
     }
@@ -534,7 +580,7 @@ static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
     const uint8_t bit = (uint8_t)(1u << i);
     const bool refit_under_way = bus->refit_steps != 0 && bus->refit_servo == i;
     /* (limp: torque off on purpose; a reset then is set right when the torque comes back on) */
-    if (p[AT(X_TORQUE_ENABLE)] == 0u && s->hardware_error == 0u && bus->state == SBUS_RUNNING && !bus->limp
+    if (p[SBUS2_AT_TORQUE_ENABLE] == 0u && s->hardware_error == 0u && bus->state == SBUS_RUNNING && !bus->limp
         && !(bus->refit & bit) && !refit_under_way) {
         s->resets++;
         bus->resets++;
@@ -584,20 +630,28 @@ static size_t sync_fill(sbus_t *bus)
     return bus->sync2_len;
 }
 
-/* A status read's end: the reading, or a retry, or the servo marked failed; then the next. */
+/* A status read's end: the reading, or a retry, or the servo marked failed; then the next.
+ * A reading with the status map lost is no reading: the map is written again and the same
+ * servo read again at once. */
 static void read_done(sbus_t *bus, int how)
 {
     sbus_servo_t *s = &bus->servo[bus->read_index];
-    if (how == DONE_OK) {
+    const bool map_lost = how == DONE_OK && !mapped(bus->reply_params);
+    if (how == DONE_OK && !map_lost) {
         take_status(bus, s, bus->reply_params);
         bus->status_reads++;
         bus->last_read = bus->read_index;
     } else {
-        s->timeouts++;
+        if (map_lost) {
+            bus->remap |= (uint8_t)(1u << bus->read_index);
+        } else {
+            s->timeouts++;
+        }
         if (bus->read_attempt < SBUS_READ_RETRIES) {
             bus->read_attempt++;
             s->retries++;
-            return;   /* the same servo again after the next command */
+            if (map_lost) bus->read_due = true;
+            return;   /* the same servo again: after the next command, or once its map is written */
         }
         s->failed = true;
     }
@@ -610,6 +664,10 @@ static void run(sbus_t *bus)
     if (bus->phase != PHASE_IDLE) {
         const int how = transaction(bus);
         if (how == NOT_DONE || bus->reply == REPLY_NONE) return;
+        if (bus->remapping) {
+            bus->remapping = false;
+            return;
+        }
         if (bus->refitting) {
             bus->refit_steps &= (uint8_t)(bus->refit_steps - 1u);
             bus->refitting = bus->refit_steps != 0;
@@ -628,6 +686,17 @@ static void run(sbus_t *bus)
             bus->command_pending = false;
             bus->read_due = true;
             bus->sync_writes++;
+        }
+    } else if (bus->remap) {
+        const unsigned i = (unsigned)__builtin_ctz(bus->remap);
+        uint8_t data[WRITE_MAX];
+        const uint8_t addr = write_of(bus, W_MAP, i, data);
+        const size_t len = dxl2_build_write(bus->tx, sizeof bus->tx, bus->servo[i].id, addr, data, WRITE_LEN[W_MAP]);
+        flush_rx(bus);
+        if (request(bus, bus->tx, len, REPLY_OPTIONAL, &bus->servo[i], 0)) {
+            bus->remap &= (uint8_t)~(1u << i);
+            bus->remapping = true;
+            bus->remaps++;
         }
     } else if (bus->refit_steps || bus->refit) {
         if (!bus->refit_steps) {
