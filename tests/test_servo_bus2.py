@@ -579,6 +579,46 @@ def test_a_corrupted_reply_is_counted_and_survived(rig_parts):
     assert c.status_valid and not c.failed
 
 
+def test_a_reply_with_an_fd_is_taken_but_not_one_with_an_unstuffed_ff_ff_fd(rig_parts):
+    """FD bytes alone (Present Position and Velocity 253) need no stuffing: the reading is taken.
+    The same reply with FF FF FD written into its parameters and its CRC made right again, but
+    not stuffed (LEN as expected), breaks Protocol 2.0's rule: at every place it is refused."""
+    rig = running_rig(rig_parts)
+    rig.on_tick = lambda r: r.lib.sbus_read(r.sbus)
+    s = rig.servo(0)
+    s.turn_by_hand(253)
+    s.set_register("goal_position", 253)
+    step = s._update_present
+
+    def at_253(rate):
+        step(rate)
+        s.set_register("present_velocity", 253)
+
+    s._update_present = at_253
+    rig.run(0.05)
+    c = rig.counters(0)
+    assert c.present_position == 253 and c.present_speed == 253 and c.bad_packets == 0
+    send_reply = rig.bus._send_reply
+    planted = []
+
+    def plant(start, data):
+        k = len(planted)
+        if data[4] == rig.ids[0] and data[7] == 0x55 and k < 14:
+            body = bytearray(data[:-2])
+            body[9 + k:12 + k] = b"\xff\xff\xfd"
+            data = bytes(body) + crc16(bytes(body)).to_bytes(2, "little")
+            planted.append(data)
+        return send_reply(start, data)
+
+    rig.bus._send_reply = plant
+    reads = c.reads
+    assert rig.run_until(lambda: len(planted) == 14, 1.0)
+    rig.run(0.01)
+    assert c.reads == reads and c.present_position == 253, "no planted reply taken"
+    rig.run(0.1)
+    assert c.reads > reads and c.present_position == 253
+
+
 def test_the_bus_echo_and_a_stuffed_reply_go_through_the_parser(rig_parts):
     """On a bus that echoes the master's bytes every reply follows an instruction packet (not
     a status): the driver's straight read gives way to the resynchronising parser, which skips

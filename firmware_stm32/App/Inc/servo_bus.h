@@ -207,6 +207,11 @@ typedef struct {
     uint16_t sync2_crc0;                /* the CRC of its bytes before the first ID */
     uint8_t read2_pkt[SBUS_SERVOS][SBUS2_READ_LEN];   /* each servo's status READ, built once at init */
     uint8_t read2_len[SBUS_SERVOS];     /* its length, 0 if the id cannot be sent */
+    uint8_t reply2_head[SBUS_SERVOS][8];   /* the first 8 bytes of each servo's status reply, */
+    uint16_t reply2_crc8[SBUS_SERVOS];     /* and their CRC (built at init) */
+    const uint8_t *expect2_head;        /* the same of the reply awaited: a status reading's, */
+    uint8_t other2_head[8];             /* or another's */
+    uint16_t expect2_crc8;
     uint8_t direct2[DXL2_STATUS_MIN_LEN + SBUS2_VERIFY_LEN];   /* the expected reply so far */
     uint8_t rx2_buf[SBUS2_RX_MAX];
     dxl2_parser_t parser2;

@@ -122,12 +122,12 @@ static void enter(sbus_t *bus, sbus_state_t state)
     bus->since_us = now_us(bus);
 }
 
+/* (The Cortex-M4 and the host are little-endian, as the protocol: a word is written whole.) */
+typedef char little_endian[(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__) ? 1 : -1];
+
 static void put32(uint8_t *p, uint32_t v)
 {
-    p[0] = (uint8_t)v;
-    p[1] = (uint8_t)(v >> 8);
-    p[2] = (uint8_t)(v >> 16);
-    p[3] = (uint8_t)(v >> 24);
+    memcpy(p, &v, sizeof v);
 }
 
 static void put16(uint8_t *p, uint16_t v)
@@ -138,12 +138,26 @@ static void put16(uint8_t *p, uint16_t v)
 
 static uint32_t get32(const uint8_t *p)
 {
-    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+    uint32_t v;
+    memcpy(&v, p, sizeof v);
+    return v;
 }
 
 static uint16_t get16(const uint8_t *p)
 {
-    return (uint16_t)(p[0] | p[1] << 8);
+    uint16_t v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/* The first 8 bytes of servo id's status packet with n_params parameters: FF FF FD 00 ID
+ * LEN_L LEN_H 55 (then the error byte); the CRC of them into crc8. */
+static void status_head(uint8_t head[8], uint16_t *crc8, uint8_t id, unsigned n_params)
+{
+    const unsigned len = n_params + 4u;   /* instruction, error, parameters, CRC */
+    const uint8_t h[8] = { 0xFFu, 0xFFu, 0xFDu, 0x00u, id, (uint8_t)(len & 0xFFu), (uint8_t)(len >> 8), DXL2_INST_STATUS };
+    memcpy(head, h, sizeof h);
+    *crc8 = dxl2_crc(0, h, sizeof h);
 }
 
 void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], uint32_t baud)
@@ -155,6 +169,7 @@ void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], 
         bus->servo[i].id = ids[i];
         bus->read2_len[i] = (uint8_t)dxl2_build_read(bus->read2_pkt[i], sizeof bus->read2_pkt[i], ids[i],
                                                      SBUS2_STATUS_ADDR, SBUS2_STATUS_LEN);
+        status_head(bus->reply2_head[i], &bus->reply2_crc8[i], ids[i], SBUS2_STATUS_LEN);
     }
     /* the SYNC_WRITE with every value 0: its head and IDs stay, the values and CRC change */
     static const uint8_t zeros[SBUS_SERVOS * SYNC_ENTRY_LEN];
@@ -258,6 +273,14 @@ static bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, 
     bus->expect_servo = s;
     bus->expect_id = s->id;
     bus->expect_params = n_params;
+    const unsigned i = (unsigned)(s - bus->servo);
+    if (n_params == SBUS2_STATUS_LEN) {   /* a status reading's: built at init */
+        bus->expect2_head = bus->reply2_head[i];
+        bus->expect2_crc8 = bus->reply2_crc8[i];
+    } else {
+        status_head(bus->other2_head, &bus->expect2_crc8, s->id, n_params);
+        bus->expect2_head = bus->other2_head;
+    }
     /* a reply may take the longest return delay plus its own bytes, counted from the
      * instruction's last byte */
     bus->timeout_us = RETURN_DELAY_MAX_US + (DXL2_STATUS_MIN_LEN + n_params) * bus->byte_us + REPLY_MARGIN_US;
@@ -296,23 +319,37 @@ static bool parse_byte(sbus_t *bus, uint8_t byte)
 /* Do the first n bytes held fit the expected reply's head, FF FF FD 00 ID LEN_L LEN_H 55? */
 static bool head_fits(const sbus_t *bus, unsigned n)
 {
-    const unsigned len = bus->expect_params + 4u;   /* instruction, error, parameters, CRC */
-    const uint8_t head[8] = { 0xFFu, 0xFFu, 0xFDu, 0x00u, bus->expect_id, (uint8_t)(len & 0xFFu), (uint8_t)(len >> 8),
-                              DXL2_INST_STATUS };
-    return memcmp(bus->direct2, head, n < sizeof head ? n : sizeof head) == 0;
+    const uint8_t *d = bus->direct2, *head = bus->expect2_head;
+    if (n >= 8u) return get32(d) == get32(head) && get32(d + 4) == get32(head + 4);   /* (the usual: all at once) */
+    for (unsigned k = 0; k < n; ++k) {
+        if (d[k] != head[k]) return false;
+    }
+    return true;
 }
 
-/* All total bytes of the expected reply held: is its CRC right, with no FF FF FD from the
- * instruction to the last parameter? (A servo stuffs one, which lengthens LEN: the parser
- * judges that reply.) */
+/* Does an FF FF FD stand in d[first - 2 .. end - 1] with its FD at first or later? An FD is
+ * rare: four bytes at a time are looked at for one before any is looked at closely. */
+static bool has_ff_ff_fd(const uint8_t *d, unsigned first, unsigned end)
+{
+    unsigned k = first;
+    for (; k + 4u <= end; k += 4u) {
+        const uint32_t w = get32(d + k) ^ 0xFDFDFDFDu;   /* a zero byte where an FD was */
+        if (((w - 0x01010101u) & ~w & 0x80808080u) != 0u) break;
+    }
+    for (; k < end; ++k) {
+        if (d[k] == 0xFDu && d[k - 1u] == 0xFFu && d[k - 2u] == 0xFFu) return true;
+    }
+    return false;
+}
+
+/* All total bytes of the expected reply held (its first 8 fit): is its CRC right, with no
+ * FF FF FD from the instruction to the last parameter? (A servo stuffs one, which lengthens
+ * LEN: the parser judges that reply.) */
 static bool whole_fits(const sbus_t *bus, unsigned total)
 {
     const uint8_t *d = bus->direct2;
-    if (dxl2_crc(0, d, total - 2u) != (uint16_t)(d[total - 2u] | d[total - 1u] << 8)) return false;
-    for (unsigned k = 9u; k + 3u <= total; ++k) {
-        if (d[k] == 0xFDu && d[k - 1u] == 0xFFu && d[k - 2u] == 0xFFu) return false;
-    }
-    return true;
+    if (dxl2_crc(bus->expect2_crc8, d + 8, total - 10u) != get16(d + total - 2u)) return false;
+    return !has_ff_ff_fd(d, 9u, total - 2u);
 }
 
 /* The len bytes received for the request, which do not fit the expected reply, through the
@@ -570,8 +607,8 @@ static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
     s->present_voltage = (uint8_t)(volts > 255u ? 255u : volts);
     s->present_temperature = p[SBUS2_AT_TEMPERATURE];
     s->hardware_error = p[SBUS2_AT_HARDWARE_ERROR];
-    for (unsigned bit = 0; bit < 8u; ++bit) {
-        if (s->hardware_error & (1u << bit)) s->hardware_error_bits[bit]++;
+    for (unsigned bits = s->hardware_error; bits != 0u; bits &= bits - 1u) {
+        s->hardware_error_bits[__builtin_ctz(bits)]++;
     }
     s->status_valid = true;
     s->failed = false;
