@@ -165,6 +165,100 @@ def test_an_xm430_arm_at_the_workspaces_edge_under_heavy_rocking_keeps_its_shaft
     assert not unsafe_shafts(board)
 
 
+@pytest.mark.parametrize("j", [0, 1, 2])
+def test_an_xm430_that_browns_out_while_engaged_is_set_up_where_it_sagged_and_the_arm_parks(xm430, j):
+    """Servo j's supply dips while the arm is engaged: its RAM comes back at its power-on
+    values, the status map with it (every byte it reads 0), the torque off, the shaft where it
+    sagged. That reading is not taken: the map is written again and the servo read again, so
+    its reset is seen with its true position; it is set up again holding there, the heartbeat
+    says servo_reset, the arm parks from where it is, every goal and every shaft position a
+    safe pose, no reading of position 0 taken; engage works again after."""
+    model = xm430[0]
+    board = board_of(xm430)
+    board.send("enable", on=1)
+    board.run(1.5)
+    p = dict(x=60.0, y=20.0, z=-120.0)
+    board.send("set_position", **p)
+    keep(board, 2.0)                                    # engage
+    keep(board, 1.0, **p)
+    assert board.heartbeats[-1]["engaged"]
+    servo, bus = board.bus.servos[j], board.app.bus
+    servo.power_off()
+    servo.power_on()
+    sagged = round(servo.position) + 25                 # a little way while limp (2.2 deg)
+    servo.turn_by_hand(sagged)
+    assert servo.register("torque_enable") == 0 and servo.register("indirect_address_1") == 224
+    n, t0 = len(board.commands), board.time
+    seen, reset_at = [], []                             # servo j's readings from now on; when its reset was seen
+    while board.time < t0 + 0.6:
+        reads, resets = bus.servo[j].reads, bus.resets
+        board.run(0.002)
+        if bus.servo[j].reads != reads:
+            seen.append(bus.servo[j].present_position)
+        if bus.resets != resets:
+            reset_at.append(board.time)
+        board.send("set_position", **p)
+    hb = board.heartbeats[-1]
+    reset = 1 << [name for name, _ in messages.FAULTS].index("servo_reset")
+    assert hb["servo_resets"] == 1 and hb["faults"] & reset and not hb["engaged"], hb
+    assert bus.remaps == 1 and bus.refits == 1
+    lo, hi = servo.register("min_position_limit"), servo.register("max_position_limit")
+    assert seen[0] == sagged and all(lo <= u <= hi for u in seen), seen[:5]     # never a position of 0
+    assert servo.register("torque_enable") == 1 and servo.register("indirect_address_1") == 64
+    goals = np.array([[c.goal[s.id] for s in model.servos] for c in board.commands[n:]])
+    status, _ = oracles.check_pose(relaxed_model(model, UNIT_RAD), joints_of(model, goals))
+    assert len(goals) > 20 and (status == 0).all(), goals[status != 0][:3]
+    keep(board, 4.0)
+    board.send("engage", on=1)
+    keep(board, 3.0)
+    hb = board.heartbeats[-1]
+    assert hb["engaged"] and not hb["faults"] & reset, hb
+    assert not unsafe_shafts(board)
+    print(f"\nservo {j + 1} browned out: its reset seen {(reset_at[0] - t0) * 1e3:.0f} ms later, from its first "
+          f"reading; {len(goals)} goals of the park from where it sagged, all safe")
+
+
+def test_an_overheated_xm430_shuts_itself_down_and_the_next_move_parks_the_arm(xm430):
+    """Above its Temperature Limit (80 deg C) the XM430's Shutdown turns its torque off and
+    raises Hardware Error Status's overheating bit; its status packets carry the alert bit (7).
+    Holding still, the heartbeat shows servo_error with that alert; the next move finds the
+    shaft not following: servo_tracking, the arm parks (by the others; the limp one stays).
+    Cooled, a new enable (its supply off and on clears the shutdown) and the arm works again;
+    every shaft position, powered, a safe pose."""
+    model = xm430[0]
+    fault = {name: 1 << i for i, (name, _) in enumerate(messages.FAULTS)}
+    board = board_of(xm430)
+    board.send("enable", on=1)
+    board.run(1.5)
+    p, other = dict(x=60.0, y=20.0, z=-120.0), dict(x=40.0, y=-50.0, z=-110.0)
+    board.send("set_position", **p)
+    keep(board, 2.0)
+    keep(board, 1.0, **p)
+    assert board.heartbeats[-1]["engaged"]
+    servo = board.bus.servos[1]
+    servo.temperature = 85.0
+    keep(board, 0.3, **p)
+    assert servo.register("torque_enable") == 0 and servo.register("hardware_error_status") == 0x04
+    hb = board.heartbeats[-1]
+    assert hb["servo2_error"] == 0x80 and hb["faults"] & fault["servo_error"] and hb["engaged"], hb
+    assert board.app.bus.resets == 0, "a shutdown is not a brown-out"
+    keep(board, 1.0, **other)
+    hb = board.heartbeats[-1]
+    assert hb["faults"] & fault["servo_tracking"] and not hb["engaged"], hb
+    servo.temperature = 40.0
+    board.send("enable", on=0)
+    board.run(0.1)
+    board.send("enable", on=1)
+    board.run(1.5)
+    keep(board, 3.0)
+    keep(board, 2.0, **other)
+    hb = board.heartbeats[-1]
+    assert hb["engaged"] and hb["servo2_error"] == 0 and not hb["faults"] & fault["servo_error"], hb
+    ee = oracles.arm_points(model, joints_of(model, [s.position for s in board.bus.servos]))[2]
+    assert np.linalg.norm(ee - [other["x"], other["y"], other["z"]]) < 0.5, ee
+    assert not unsafe_shafts(board)
+
+
 X_EDITS = {"servo.model": "XM430-W350", "servo.baud": 1_000_000, "servo.units_max": 4095,
            "servo.range_deg": 359.912109375, "servo.theta1.zero": 2048, "servo.theta2.zero": 2048,
            "servo.theta3.zero": 2048}
