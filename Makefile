@@ -60,11 +60,12 @@ fuzz: $(STAMP)
 	$(PY) fuzz/run.py --time 20 --jobs 2
 
 # The long run of docs/fuzzing.md's figures: 10 million inputs of each harness; the whole
-# application and the model loader on both cores, 5 million each (about two hours in all
-# on an idle 2-core machine).
+# application (both servo families) and the model loader on both cores, 5 million each
+# (about four hours in all on an idle 2-core machine).
 fuzz-long: $(STAMP)
 	$(PY) fuzz/run.py --runs 10000000 llcp_rx dxl_parser dxl2_parser
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 app_link
+	$(PY) fuzz/run.py --runs 5000000 --workers 2 app_link_x
 	$(PY) fuzz/run.py --runs 5000000 --workers 2 model_loader
 
 # Mutation testing (README "Verification"): mutants of the safety-relevant firmware, templates

@@ -232,8 +232,6 @@ def bus_traffic(m, seconds=1.0):
 
 
 # The model file as an XM430-W350 arm: the servo model, its travel, a baud it runs at, zeros at its centre.
-XM430_EDITS = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.range_deg": 359.912109375,
-               "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
 
 
 def xseries_reply_bytes() -> int:
@@ -252,7 +250,7 @@ def xseries_bus(n=9):
     from uavarm.codegen import generate
     with tempfile.TemporaryDirectory(prefix="uavarm-xm430-") as tmp:
         model_path, gen_dir = Path(tmp) / "arm.toml", Path(tmp) / "generated"
-        model_path.write_text(variants.edited_text(XM430_EDITS))
+        model_path.write_text(variants.edited_text(variants.XM430_EDITS))
         generate.write(generate.render(model_path), gen_dir)
         sources = [str(firmware.APP / "Src" / f) for f in ("servo_bus2.c", "dxl_protocol2.c")]
         build = m4.build(sources + [str(BENCH / "sbus2_bench.c")], ["bench_sbus2"],
@@ -271,7 +269,7 @@ def xseries_tick():
     from uavarm.build import variants
     m = config.load()
     raw = tilting_imu(m, N_TICKS + 1)
-    idle, run = tick_runs(tick_bench_build(variants.build(XM430_EDITS).gen_dir), raw)
+    idle, run = tick_runs(tick_bench_build(variants.build(variants.XM430_EDITS).gen_dir), raw)
     if not (idle.ret and run.ret):
         raise SystemExit("tick bench: the XM430-W350 run did not complete (engaged, all commands sent)")
     by_func = {k: (v - idle.cycles_by_function.get(k, 0)) / N_TICKS for k, v in run.cycles_by_function.items()}

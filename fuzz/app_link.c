@@ -1,7 +1,9 @@
 /* libFuzzer harness: the whole firmware application (firmware_stm32/App + generated/) on a
  * minimal in-memory board whose every input comes from the fuzzer: link bytes from the
  * drone, servo-bus replies, MPU-6050 registers (so the sample path mpu_sample ->
- * filters -> estimator -> IK is fuzzed too) and time.
+ * filters -> estimator -> IK is fuzzed too) and time. Built twice by fuzz/run.py: app_link
+ * from the committed model file (AX-12As, Protocol 1.0), app_link_x from it made an arm of
+ * XM430-W350s (Protocol 2.0: its simulated servos read through their Indirect Addresses).
  *
  * Input: a header, then operations until the input ends (missing bytes read as 0).
  *   header   start time (4 bytes, little-endian: the clock's wrap is reached too),
@@ -26,7 +28,8 @@
  *                    own bytes (single-wire echo); 3: the link's transmit queue is full;
  *                    4: replies corrupted (see CORRUPT); 5: IMU reads fail; 6: IMU writes
  *                    fail (NACK); 7: IMU writes are acknowledged but lost
- *   7 SERVOREG i a v register a % 50 of simulated servo i % 3 = v (present position, ...)
+ *   7 SERVOREG i a v register a % N_REGS of simulated servo i % 3 = v (present position, ...;
+ *                    N_REGS 50 for the AX-12A, 252 for the X-series)
  *   8 TICK           an extra tick request (interrupt), then app_poll()
  *   9 CORRUPT k x    a corrupted reply has byte k % 16 XORed with x (x = 0: truncated
  *                    after k bytes)
@@ -35,11 +38,11 @@
  * Checked after every app_poll() and inside the port functions, besides ASan/UBSan:
  *   - every servo-bus packet the application sends is one well-formed instruction packet,
  *     sent only while the servo supply is on;
- *   - every SYNC_WRITE holds goal positions whose angles (AX-12A: 1023 units over 300 deg)
- *     are inside the joint limits, a park or working speed, and is the command of the
+ *   - every SYNC_WRITE holds goal positions whose angles (AX-12A: 1023 units over 300 deg;
+ *     X-series: 4096 a turn) are inside the joint limits, a park or working speed, and is the command of the
  *     application's joint vector q_cmd, which is safe by plain geometry (plain_arm.h:
  *     limits, body, legs, from the model file's numbers, not the generated checks) and
- *     rounds to exactly those units;
+ *     rounds to exactly those units (the nearest inside the limits);
  *   - the servo supply is on exactly while the application is enabled, engaged implies
  *     enabled (never on the bench, enable 2, which never parks either), a usable IMU and no servo tracking fault, and after a frame "enable 0" the supply is off when app_poll() returns;
  *   - a valid frame always reaches the application (its good-frame counter moves) in the
@@ -64,6 +67,7 @@
 
 #include "app.h"
 #include "dxl_protocol.h"
+#include "dxl_protocol2.h"
 #include "imu_mpu6050.h"
 #include "kinematics.h"
 #include "llcp.h"
@@ -84,8 +88,31 @@ enum { F_IMU_ABSENT = 1, F_RESPOND = 2, F_ECHO = 4, F_LINK_FULL = 8, F_CORRUPT =
 static const uint32_t STEP_US[8] = { 50u, 250u, 1000u, 2500u, 10000u, 100000u, 1000000u, 0x40000000u };
 #define MAX_POLLS 3000          /* bounds one input's run time */
 #define N_SERVOS 3
-#define N_REGS 50
 #define FIFO_CAP 1024
+/* the simulated servos' control tables: the registers the harness itself sets */
+#if MODEL_DXL_PROTOCOL == 2u
+#define N_REGS 252                /* .. Indirect Data 28 */
+#define REG_ID 7
+#define REG_RETURN_DELAY 9
+#define REG_TORQUE_ENABLE 64
+#define REG_STATUS_RETURN 68
+#define REG_GOAL 116              /* 4 bytes */
+#define REG_PRESENT 132           /* 4 bytes */
+#define REG_VOLTAGE 144           /* 2 bytes */
+#define REG_TEMPERATURE 146
+#define REG_INDIRECT_ADDRESS 168  /* Indirect Address k at 168 + 2 (k - 1): Indirect Data k, 224 + k - 1 */
+#define REG_INDIRECT_DATA 224
+#else
+#define N_REGS 50
+#define REG_ID 3
+#define REG_RETURN_DELAY 5
+#define REG_TORQUE_ENABLE 24
+#define REG_STATUS_RETURN 16
+#define REG_GOAL 30               /* 2 bytes */
+#define REG_PRESENT 36            /* 2 bytes */
+#define REG_VOLTAGE 42            /* 1 byte */
+#define REG_TEMPERATURE 43
+#endif
 
 static const uint8_t IDS[N_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
 /* float32 rounding allowed at a boundary of plain_pose_safe (rad, mm) */
@@ -105,7 +132,7 @@ typedef struct {
     bool power;
     bool tx_active;
     uint32_t tx_end;
-    uint8_t regs[N_SERVOS][N_REGS];     /* the simulated AX-12A control tables */
+    uint8_t regs[N_SERVOS][N_REGS];     /* the simulated servos' control tables */
     uint8_t corrupt_at;
     uint8_t corrupt_xor;
     uint8_t reply_error;
@@ -222,26 +249,55 @@ static void check_frame(const uint8_t *buf, size_t n)
     CHECK(hb.faults < (1u << MSG_FAULT_COUNT));
 }
 
-/* One SYNC_WRITE of goal position and moving speed to the three servos. */
+/* One SYNC_WRITE of goal position and moving speed (X-series: Profile Velocity and Goal
+ * Position) to the three servos: where each entry's goal and speed stand in the packet. */
+#if MODEL_DXL_PROTOCOL == 2u
+#define SYNC_LEN (12u + 2u + N_SERVOS * 9u)
+#define SYNC_ENTRY(pkt, i) ((pkt) + 12 + 9 * (i))
+static bool sync_head_ok(const uint8_t *pkt)
+{
+    return pkt[4] == DXL2_BROADCAST_ID && pkt[8] == 112u && pkt[9] == 0u && pkt[10] == 8u && pkt[11] == 0u;
+}
+static uint32_t le(const uint8_t *p, unsigned n)
+{
+    uint32_t v = 0;
+    for (unsigned k = n; k-- > 0;) v = v << 8 | p[k];
+    return v;
+}
+#define ENTRY_GOAL(e) le((e) + 5, 4)
+#define ENTRY_SPEED(e) le((e) + 1, 4)
+#else
+#define SYNC_LEN (6u + 2u + N_SERVOS * 5u)
+#define SYNC_ENTRY(pkt, i) ((pkt) + 7 + 5 * (i))
+static bool sync_head_ok(const uint8_t *pkt)
+{
+    return pkt[2] == DXL_BROADCAST_ID && pkt[5] == DXL_AX_GOAL_POSITION && pkt[6] == 4u;
+}
+#define ENTRY_GOAL(e) ((uint32_t)((e)[1] | (e)[2] << 8))
+#define ENTRY_SPEED(e) ((uint32_t)((e)[3] | (e)[4] << 8))
+#endif
+
 static void check_sync_write(const uint8_t *pkt, size_t n)
 {
     const app_t *app = B.app;
-    CHECK(n == 6u + 2u + N_SERVOS * 5u);
-    CHECK(pkt[2] == DXL_BROADCAST_ID && pkt[5] == DXL_AX_GOAL_POSITION && pkt[6] == 4u);
+    CHECK(n == SYNC_LEN && sync_head_ok(pkt));
     CHECK(app->enabled);
-    uint16_t goal[N_SERVOS];
     static const float lo[N_SERVOS] = ARM_JOINT_MIN_DEG, hi[N_SERVOS] = ARM_JOINT_MAX_DEG;
-    for (int i = 0; i < N_SERVOS; ++i) {
-        const uint8_t *e = pkt + 7 + 5 * i;
-        CHECK(e[0] == IDS[i]);
-        goal[i] = (uint16_t)(e[1] | e[2] << 8);
-        uint16_t speed = (uint16_t)(e[3] | e[4] << 8);
-        const float end_a = plain_units(i, lo[i] * PLAIN_DEG), end_b = plain_units(i, hi[i] * PLAIN_DEG);
-        CHECK((float)goal[i] >= fminf(end_a, end_b) - 1e-3f && (float)goal[i] <= fmaxf(end_a, end_b) + 1e-3f);
-        CHECK(speed == MODEL_PARK_SPEED || speed == MODEL_TRANSIT_SPEED || speed == MODEL_WORKING_SPEED);
-    }
     CHECK(plain_pose_safe(app->q_cmd, PLAIN_SLACK));
-    for (int i = 0; i < N_SERVOS; ++i) CHECK(fabsf((float)goal[i] - plain_units(i, app->q_cmd[i])) <= 0.5f + 1e-3f);
+    for (int i = 0; i < N_SERVOS; ++i) {
+        const uint8_t *e = SYNC_ENTRY(pkt, i);
+        CHECK(e[0] == IDS[i]);
+        const float goal = (float)ENTRY_GOAL(e);
+        const uint32_t speed = ENTRY_SPEED(e);
+        /* the units inside the joint limits */
+        const float end_a = plain_units(i, lo[i] * PLAIN_DEG), end_b = plain_units(i, hi[i] * PLAIN_DEG);
+        const float first = ceilf(fminf(end_a, end_b) - 1e-3f), last = floorf(fmaxf(end_a, end_b) + 1e-3f);
+        CHECK(goal >= first && goal <= last);
+        CHECK(speed == MODEL_PARK_SPEED || speed == MODEL_TRANSIT_SPEED || speed == MODEL_WORKING_SPEED);
+        /* the commanded joint's unit: the nearest, or the nearest inside the limits where the
+         * nearest is a limit's own unit rounded outward */
+        CHECK(fabsf(goal - fminf(fmaxf(plain_units(i, app->q_cmd[i]), first), last)) <= 0.5f + 1e-3f);
+    }
     B.sync_writes++;
     if (app->engaged) {
         B.engaged_sync_writes++;
@@ -260,6 +316,122 @@ static int servo_index(uint8_t id)
     return -1;
 }
 
+/* A corrupted reply (F_CORRUPT): byte corrupt_at % 16 XORed, or the reply cut there. */
+static size_t corrupt(uint8_t *pkt, size_t len)
+{
+    if (B.flags & F_CORRUPT) {
+        const size_t k = B.corrupt_at % 16u;
+        if (B.corrupt_xor == 0) {
+            len = k < len ? k : len;
+        } else if (k < len) {
+            pkt[k] ^= B.corrupt_xor;
+        }
+    }
+    return len;
+}
+
+#if MODEL_DXL_PROTOCOL == 2u
+/* Servo i's status packet (Protocol 2.0: stuffed, CRC-16) onto the bus. */
+static void reply(int i, const uint8_t *params, size_t n)
+{
+    uint8_t pkt[11 + 2 * N_REGS];
+    size_t len = 0;
+    static const uint8_t head[] = { 0xFF, 0xFF, 0xFD, 0x00 };
+    memcpy(pkt, head, sizeof head);
+    pkt[4] = IDS[i];
+    len = 7;
+    pkt[len++] = DXL2_INST_STATUS;
+    pkt[len++] = B.reply_error;
+    for (size_t k = 0; k < n; ++k) {
+        pkt[len++] = params[k];
+        if (params[k] == 0xFD && pkt[len - 2] == 0xFF && pkt[len - 3] == 0xFF) pkt[len++] = 0xFD;   /* stuffing */
+    }
+    pkt[5] = (uint8_t)(len - 5u);   /* LEN: from the instruction to the CRC */
+    pkt[6] = (uint8_t)((len - 5u) >> 8);
+    const uint16_t crc = dxl2_crc(0, pkt, len);
+    pkt[len++] = (uint8_t)crc;
+    pkt[len++] = (uint8_t)(crc >> 8);
+    (void)fifo_push(&B.servo_in, pkt, corrupt(pkt, len));
+}
+
+/* The address a read of register a of servo i reads: Indirect Data k's is what Indirect
+ * Address k holds (itself at power-on, reading 0). */
+static unsigned read_address(int i, unsigned a)
+{
+    if (a < REG_INDIRECT_DATA || a >= N_REGS) return a;
+    const uint8_t *ia = B.regs[i] + REG_INDIRECT_ADDRESS + 2u * (a - REG_INDIRECT_DATA);
+    return (unsigned)(ia[0] | ia[1] << 8);
+}
+
+/* The simulated X-series servos receive one instruction packet (well formed: checked). */
+static void servos_receive(const uint8_t *pkt, size_t n)
+{
+    uint8_t params[DXL2_MAX_PACKET_LEN];
+    size_t n_params = 0;
+    for (size_t k = 8; k + 2 < n; ++k) {   /* unstuffed: the FD after each FF FF FD dropped */
+        if (k >= 11 && pkt[k] == 0xFD && pkt[k - 1] == 0xFD && pkt[k - 2] == 0xFF && pkt[k - 3] == 0xFF) continue;
+        params[n_params++] = pkt[k];
+    }
+    const uint8_t id = pkt[4], inst = pkt[7];
+    if (inst == DXL2_INST_SYNC_WRITE) {
+        const unsigned addr = (unsigned)(params[0] | params[1] << 8), size = (unsigned)(params[2] | params[3] << 8);
+        for (size_t e = 4; size > 0 && e + 1 + size <= n_params; e += 1 + size) {
+            const int i = servo_index(params[e]);
+            if (i >= 0 && addr + size <= N_REGS) {
+                memcpy(&B.regs[i][addr], params + e + 1, size);
+                memcpy(&B.regs[i][REG_PRESENT], &B.regs[i][REG_GOAL], 4);   /* instant move */
+            }
+        }
+        return;
+    }
+    for (int i = 0; i < N_SERVOS; ++i) {
+        if (id != IDS[i] && id != DXL2_BROADCAST_ID) continue;
+        const unsigned addr = n_params >= 2 ? (unsigned)(params[0] | params[1] << 8) : N_REGS;
+        if (inst == DXL2_INST_WRITE) {
+            for (size_t k = 2; k < n_params && addr + k - 2 < N_REGS; ++k) B.regs[i][addr + k - 2] = params[k];
+            if ((B.flags & F_RESPOND) && B.regs[i][REG_STATUS_RETURN] == 2 && id != DXL2_BROADCAST_ID) reply(i, NULL, 0);
+        } else if (inst == DXL2_INST_READ && n_params == 4 && (B.flags & F_RESPOND) && B.regs[i][REG_STATUS_RETURN] >= 1) {
+            uint8_t out[N_REGS] = {0};
+            const unsigned len = (unsigned)(params[2] | params[3] << 8);
+            for (unsigned k = 0; k < len && k < N_REGS && addr + k < N_REGS; ++k) {
+                const unsigned from = read_address(i, addr + k);
+                out[k] = from < N_REGS ? B.regs[i][from] : 0;
+            }
+            reply(i, out, len < N_REGS ? len : N_REGS);
+        }
+    }
+}
+
+/* One well-formed instruction packet: header, LEN, CRC; an instruction the driver sends, to a
+ * servo (SYNC_WRITE and a WRITE to all: broadcast). Is it a SYNC_WRITE? */
+static bool check_instruction(const uint8_t *buf, size_t n)
+{
+    CHECK(n >= 10 && n <= DXL2_MAX_PACKET_LEN);
+    CHECK(buf[0] == 0xFF && buf[1] == 0xFF && buf[2] == 0xFD && buf[3] == 0x00);
+    CHECK((size_t)(buf[5] | buf[6] << 8) == n - 7u);
+    CHECK(dxl2_crc(0, buf, n - 2u) == (uint16_t)(buf[n - 2u] | buf[n - 1u] << 8));
+    const uint8_t inst = buf[7];
+    CHECK(inst == DXL2_INST_WRITE || inst == DXL2_INST_READ || inst == DXL2_INST_SYNC_WRITE);
+    CHECK(inst == DXL2_INST_SYNC_WRITE ? buf[4] == DXL2_BROADCAST_ID
+          : servo_index(buf[4]) >= 0 || (inst == DXL2_INST_WRITE && buf[4] == DXL2_BROADCAST_ID));
+    return inst == DXL2_INST_SYNC_WRITE;
+}
+
+/* Power on: the RAM (Torque Enable on) back at its initial values; the shafts where they were. */
+static void servos_power_on(void)
+{
+    for (int i = 0; i < N_SERVOS; ++i) {
+        uint8_t kept[15];
+        memcpy(kept, B.regs[i] + REG_PRESENT, sizeof kept);   /* Present Position .. Temperature */
+        memset(B.regs[i] + REG_TORQUE_ENABLE, 0, N_REGS - REG_TORQUE_ENABLE);
+        memcpy(B.regs[i] + REG_PRESENT, kept, sizeof kept);
+        B.regs[i][REG_STATUS_RETURN] = 2;
+        for (unsigned k = 0; k < N_REGS - REG_INDIRECT_DATA; ++k) {
+            B.regs[i][REG_INDIRECT_ADDRESS + 2u * k] = (uint8_t)(REG_INDIRECT_DATA + k);
+        }
+    }
+}
+#else
 static void reply(int i, const uint8_t *params, size_t n)
 {
     uint8_t pkt[6 + N_REGS];
@@ -272,16 +444,7 @@ static void reply(int i, const uint8_t *params, size_t n)
         memcpy(pkt + 5, params, n);
     }
     pkt[5 + n] = dxl_checksum(pkt + 2, n + 3u);
-    size_t len = n + 6u;
-    if (B.flags & F_CORRUPT) {
-        const size_t k = B.corrupt_at % 16u;
-        if (B.corrupt_xor == 0) {
-            len = k < len ? k : len;
-        } else if (k < len) {
-            pkt[k] ^= B.corrupt_xor;
-        }
-    }
-    (void)fifo_push(&B.servo_in, pkt, len);
+    (void)fifo_push(&B.servo_in, pkt, corrupt(pkt, n + 6u));
 }
 
 /* The simulated AX-12A servos receive one instruction packet. */
@@ -294,8 +457,8 @@ static void servos_receive(const uint8_t *pkt, size_t n)
         for (size_t e = 2; e + 5 <= n_params; e += 5) {
             int i = servo_index(params[e]);
             if (i >= 0) {
-                memcpy(&B.regs[i][30], params + e + 1, 4);
-                memcpy(&B.regs[i][36], params + e + 1, 2);   /* instant move */
+                memcpy(&B.regs[i][REG_GOAL], params + e + 1, 4);
+                memcpy(&B.regs[i][REG_PRESENT], params + e + 1, 2);   /* instant move */
             }
         }
         return;
@@ -308,10 +471,10 @@ static void servos_receive(const uint8_t *pkt, size_t n)
         for (size_t k = 1; k < n_params && params[0] + k - 1 < N_REGS; ++k) {
             B.regs[i][params[0] + k - 1] = params[k];
         }
-        if ((B.flags & F_RESPOND) && B.regs[i][16] == 2) {
+        if ((B.flags & F_RESPOND) && B.regs[i][REG_STATUS_RETURN] == 2) {
             reply(i, NULL, 0);
         }
-    } else if (inst == DXL_INST_READ && n_params == 2 && (B.flags & F_RESPOND) && B.regs[i][16] >= 1) {
+    } else if (inst == DXL_INST_READ && n_params == 2 && (B.flags & F_RESPOND) && B.regs[i][REG_STATUS_RETURN] >= 1) {
         uint8_t out[N_REGS] = {0};
         const size_t len = params[1] < N_REGS ? params[1] : N_REGS;
         for (size_t k = 0; k < len && params[0] + k < N_REGS; ++k) {
@@ -320,6 +483,27 @@ static void servos_receive(const uint8_t *pkt, size_t n)
         reply(i, out, len);
     }
 }
+
+static bool check_instruction(const uint8_t *buf, size_t n)
+{
+    CHECK(n >= 6 && n <= DXL_MAX_PACKET_LEN);
+    CHECK(buf[0] == 0xFF && buf[1] == 0xFF && buf[3] == n - 4u);
+    CHECK(dxl_checksum(buf + 2, n - 3u) == buf[n - 1u]);
+    const uint8_t inst = buf[4];
+    CHECK(inst == DXL_INST_WRITE || inst == DXL_INST_READ || inst == DXL_INST_SYNC_WRITE);
+    CHECK(inst == DXL_INST_SYNC_WRITE ? buf[2] == DXL_BROADCAST_ID : servo_index(buf[2]) >= 0);
+    return inst == DXL_INST_SYNC_WRITE;
+}
+
+/* Power on: the servos boot with their factory settings, shafts where they were. */
+static void servos_power_on(void)
+{
+    for (int i = 0; i < N_SERVOS; ++i) {
+        B.regs[i][REG_STATUS_RETURN] = 2;      /* answer everything */
+        B.regs[i][REG_TORQUE_ENABLE] = 0;      /* torque off */
+    }
+}
+#endif
 
 /* ------------------------------------------------------------------ port */
 
@@ -353,16 +537,12 @@ static bool p_servo_busy(void *ctx)
 static bool p_servo_send(void *ctx, const uint8_t *buf, size_t n)
 {
     CHECK(B.power);
-    CHECK(n >= 6 && n <= DXL_MAX_PACKET_LEN);
-    CHECK(buf[0] == 0xFF && buf[1] == 0xFF && buf[3] == n - 4u);
-    CHECK(dxl_checksum(buf + 2, n - 3u) == buf[n - 1u]);
+    CHECK(buf != NULL);
+    const bool sync_write = check_instruction(buf, n);
     if (p_servo_busy(ctx)) {
         return false;
     }
-    const uint8_t inst = buf[4];
-    CHECK(inst == DXL_INST_WRITE || inst == DXL_INST_READ || inst == DXL_INST_SYNC_WRITE);
-    CHECK(inst == DXL_INST_SYNC_WRITE ? buf[2] == DXL_BROADCAST_ID : servo_index(buf[2]) >= 0);
-    if (inst == DXL_INST_SYNC_WRITE) {
+    if (sync_write) {
         check_sync_write(buf, n);
     }
     B.tx_active = true;
@@ -384,11 +564,7 @@ static void p_servo_power(void *ctx, bool on)
 {
     (void)ctx;
     if (on && !B.power) {
-        /* servos boot with their factory settings, shafts where they were */
-        for (int i = 0; i < N_SERVOS; ++i) {
-            B.regs[i][16] = 2;      /* Status Return Level: answer everything */
-            B.regs[i][24] = 0;      /* torque off */
-        }
+        servos_power_on();
     }
     B.power = on;
 }
@@ -455,11 +631,19 @@ static void poll_and_check(void)
     CHECK(isfinite(APP.stab.attitude.roll) && isfinite(APP.stab.attitude.pitch));
     CHECK(APP.bus.state <= SBUS_FAILED);
     /* buffers inside app_t, where AddressSanitizer does not look */
+#if MODEL_DXL_PROTOCOL == 2u
+    CHECK(APP.bus.parser2.buf == APP.bus.rx2_buf && APP.bus.parser2.size <= sizeof APP.bus.rx2_buf);
+    CHECK(APP.bus.parser2.len <= APP.bus.parser2.size);
+    CHECK(APP.bus.direct_len <= DXL2_STATUS_MIN_LEN + APP.bus.expect_params
+          && DXL2_STATUS_MIN_LEN + APP.bus.expect_params <= sizeof APP.bus.direct2);
+    CHECK(APP.bus.sync2_len <= sizeof APP.bus.sync2_pkt);
+#else
     CHECK(APP.bus.parser.buf == APP.bus.rx_buf && APP.bus.parser.size <= sizeof APP.bus.rx_buf);
     CHECK(APP.bus.parser.len <= APP.bus.parser.size);
     CHECK(APP.bus.direct_len <= DXL_STATUS_MIN_LEN + APP.bus.expect_params
           && DXL_STATUS_MIN_LEN + APP.bus.expect_params <= sizeof APP.bus.direct);
     CHECK(APP.bus.sync_len <= sizeof APP.bus.sync_pkt);
+#endif
     CHECK(APP.link.count <= APP.link.len);
 }
 
@@ -559,14 +743,15 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     B.imu[MPU_REG_WHO_AM_I] = MPU_WHO_AM_I;
     B.imu[MPU_REG_ACCEL_XOUT_H + 4] = 0x20;
     for (int i = 0; i < N_SERVOS; ++i) {
-        B.regs[i][3] = IDS[i];
-        B.regs[i][5] = 250;                  /* factory Return Delay Time */
-        B.regs[i][16] = 2;
-        B.regs[i][36] = 0x00;                /* present position 512 */
-        B.regs[i][37] = 0x02;
-        B.regs[i][42] = 120;                 /* 12.0 V */
-        B.regs[i][43] = 30;                  /* 30 deg C */
+        const uint32_t centre = (MODEL_DXL_POSITION_MAX + 1u) / 2u;   /* present position 512 or 2048 */
+        B.regs[i][REG_ID] = IDS[i];
+        B.regs[i][REG_RETURN_DELAY] = 250;   /* the factory's */
+        B.regs[i][REG_PRESENT] = (uint8_t)centre;
+        B.regs[i][REG_PRESENT + 1] = (uint8_t)(centre >> 8);
+        B.regs[i][REG_VOLTAGE] = 120;        /* 12.0 V */
+        B.regs[i][REG_TEMPERATURE] = 30;     /* 30 deg C */
     }
+    servos_power_on();
     polls = 0;
     next_tick = B.now + MODEL_TICK_US;
     app_init(&APP, &PORT);
@@ -638,10 +823,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     if (trace) {
         fprintf(stderr, "app_link: polls %u ticks %u sync_writes %u engaged_sync_writes %u "
-                "heartbeats %u bus_state %d enabled %d engaged %d imu_ok %d faults 0x%02x\n",
+                "heartbeats %u bus_state %d enabled %d engaged %d imu_ok %d faults 0x%02x "
+                "resets %u remaps %u\n",
                 polls, (unsigned)APP.ticks_run, (unsigned)B.sync_writes,
                 (unsigned)B.engaged_sync_writes, (unsigned)B.heartbeats, (int)APP.bus.state,
-                (int)APP.enabled, (int)APP.engaged, (int)APP.imu_ok, (unsigned)app_faults(&APP));
+                (int)APP.enabled, (int)APP.engaged, (int)APP.imu_ok, (unsigned)app_faults(&APP),
+                (unsigned)APP.bus.resets, (unsigned)APP.bus.remaps);
     }
     return 0;
 }

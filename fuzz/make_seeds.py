@@ -25,7 +25,8 @@ from uavarm.model import config  # noqa: E402
 from uavarm.sim import ax12_sim, xseries_sim
 
 CORPUS = Path(__file__).resolve().parent / "corpus"
-MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "dxl2_parser": 2048, "app_link": 1024, "model_loader": 16384}   # fuzz/run.py
+MAX_LEN = {"llcp_rx": 1024, "dxl_parser": 1024, "dxl2_parser": 2048, "app_link": 1024, "app_link_x": 1024,
+           "model_loader": 16384}   # fuzz/run.py
 
 
 def frame(name: str, **fields) -> bytes:
@@ -209,7 +210,12 @@ class Session:
         return self
 
 
-def app_seeds() -> list[bytes]:
+# The simulated servos' registers the seeds set (fuzz/app_link.c; the e-manuals' control tables)
+AX_REGS = {"present": 36, "torque_enable": 24, "torque_limit": 34}
+X_REGS = {"present": 132, "torque_enable": 64, "indirect_address_2": 170}
+
+
+def app_seeds(regs: dict[str, int] = AX_REGS) -> list[bytes]:
     def started(**kw) -> Session:
         # servo boot, configuration, then the estimator's settling (engage is refused before)
         return Session(**kw).send("enable", on=1).run(0.1, 100000).run(0.08).run(0.5, 2500)
@@ -226,7 +232,7 @@ def app_seeds() -> list[bytes]:
     faults = (started().send("engage", on=1).flags(F_RESPOND | F_ECHO | F_CORRUPT).corrupt(7, 0x10)
               .run(0.05).corrupt(9, 0).servo_bytes(b"\xff\xff\x01\x02\x00\xfc\xff").run(0.03)
               .flags(F_RESPOND | F_IMU_READ_FAIL | F_LINK_FULL).run(0.6, 2500)
-              .flags(F_RESPOND).servo_reg(1, 36, 0xFF).servo_error(0x20).run(0.05).servo_error(0)
+              .flags(F_RESPOND).servo_reg(1, regs["present"], 0xFF).servo_error(0x20).run(0.05).servo_error(0)
               .tick().tick().run(0.02))
     refused = (Session(flags=F_RESPOND).send("engage", on=1)
                .send("set_position", x=math.nan, y=0.0, z=-100.0)
@@ -244,13 +250,21 @@ def app_seeds() -> list[bytes]:
            .imu_reg(107, 0x40).run(1.2, 10000).send("engage", on=1).run(0.05, 10000))
     imu.data += bytes([OP_SAMPLE]) + struct.pack(">3hh3h", 32767, 0, 8192, 0, 0, -32768, 0)
     imu.tick()
-    # servo 1's shaft stays at 768 whatever it is sent (stuck): its status reads, between
-    # each tick's SYNC_WRITE and the next, show it not following
+    # servo 1's shaft stays at 768 units (AX-12A; 3072, X-series) whatever it is sent (stuck):
+    # its status reads, between each tick's SYNC_WRITE and the next, show it not following
     stuck = started().send("engage", on=1).run(0.02, 10000)
+    high = 0x03 if regs is AX_REGS else 0x0C
     for _ in range(33):
-        stuck.run(0.01, 10000).servo_reg(0, 36, 0x00).servo_reg(0, 37, 0x03).run(0.005, 2500)
-    # servo 2 browns out: its RAM back at power-up values (torque off, Torque Limit = Max Torque)
-    stuck.servo_reg(1, 24, 0).servo_reg(1, 34, 0xFF).servo_reg(1, 35, 0x03).run(0.05, 2500)
+        stuck.run(0.01, 10000).servo_reg(0, regs["present"], 0x00).servo_reg(0, regs["present"] + 1, high)
+        stuck.run(0.005, 2500)
+    # servo 2 browns out: its RAM back at power-up values (torque off; the AX-12A's Torque Limit
+    # = Max Torque; the X-series' status map lost, its Status Return Level's slot reading itself)
+    stuck.servo_reg(1, regs["torque_enable"], 0)
+    if regs is AX_REGS:
+        stuck.servo_reg(1, regs["torque_limit"], 0xFF).servo_reg(1, regs["torque_limit"] + 1, 0x03)
+    else:
+        stuck.servo_reg(1, regs["indirect_address_2"], 225)
+    stuck.run(0.05, 2500)
     return [engaged.data, wrap.data, faults.data, refused.data, no_servos.data, imu.data, stuck.data]
 
 
@@ -306,6 +320,7 @@ def main() -> int:
     write("dxl_parser", dxl_seeds())
     write("dxl2_parser", dxl2_seeds())
     write("app_link", app_seeds())
+    write("app_link_x", app_seeds(X_REGS))
     write("model_loader", model_seeds(), model_regressions())
     return 0
 

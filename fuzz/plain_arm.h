@@ -1,9 +1,9 @@
 /* The fuzzers' own judge of a joint vector, written apart from the code generator: plain
  * geometry of the arm (joint 1 turns a vertical plane about the base axis; in it the upper
  * arm hangs from the shoulder, L1 below the base, at q2 from straight down, the forearm at
- * q2 + q3) and the AX-12A's written facts (1023 position units over 300 degrees). The arm's
- * numbers come from build/fuzz/arm_spec.h, which fuzz/run.py writes from the model file
- * itself (tomllib), not through the generator. */
+ * q2 + q3) and the servo's written facts (ARM_UNITS_PER_DEG: the AX-12A's 1023 position units
+ * over 300 degrees, the X-series' 4096 a turn). The arm's numbers come from arm_spec.h, which
+ * fuzz/run.py writes from the model file itself (tomllib), not through the generator. */
 #ifndef PLAIN_ARM_H
 #define PLAIN_ARM_H
 
@@ -40,11 +40,11 @@ static inline bool plain_pose_safe(const float q[3], float slack)
 }
 
 /* The servo position of joint angle q (rad) of joint i, unrounded: zero + direction x the
- * angle in units of 300 / 1023 degrees. */
+ * angle in the servo's units. */
 static inline float plain_units(int i, float q)
 {
     static const float zero[3] = ARM_SERVO_ZERO, direction[3] = ARM_SERVO_DIRECTION;
-    return zero[i] + direction[i] * q / PLAIN_DEG * (1023.0f / 300.0f);
+    return zero[i] + direction[i] * q / PLAIN_DEG * ARM_UNITS_PER_DEG;
 }
 
 #endif

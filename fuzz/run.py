@@ -47,6 +47,8 @@ FLAGS = SANITIZE + cbuild.WARNING_FLAGS + ["-ffp-contract=off", "-fno-math-errno
 
 
 def _c_sources(name: str) -> list[Path]:
+    if name == "app_link_x":
+        return firmware.app_sources(_xseries()[1])
     if name == "llcp_rx":
         return [APP_SRC / "llcp.c", generated.GENERATED / "messages.c"]
     if name == "dxl_parser":
@@ -58,7 +60,8 @@ def _c_sources(name: str) -> list[Path]:
     raise KeyError(name)
 
 
-C_HARNESSES = ("llcp_rx", "dxl_parser", "dxl2_parser", "app_link")
+# app_link_x: fuzz/app_link.c built from the model file made an arm of XM430-W350s
+C_HARNESSES = ("llcp_rx", "dxl_parser", "dxl2_parser", "app_link", "app_link_x")
 PY_HARNESSES = ("model_loader",)
 HARNESSES = C_HARNESSES + PY_HARNESSES
 # libFuzzer options per harness: longest input, and how long one input may take.
@@ -67,6 +70,7 @@ OPTIONS = {
     "dxl_parser": ["-max_len=1024", "-timeout=10"],
     "dxl2_parser": ["-max_len=2048", "-timeout=10"],
     "app_link": ["-max_len=1024", "-timeout=10"],
+    "app_link_x": ["-max_len=1024", "-timeout=10"],
     "model_loader": ["-max_len=16384", "-timeout=30", f"-dict={FUZZ / 'model_loader.dict'}"],
 }
 
@@ -101,9 +105,36 @@ def atheris_available() -> bool:
     return proc.returncode == 0
 
 
-def write_arm_spec(model_file: Path = ROOT / "model" / "manipulator.toml") -> None:
-    """build/fuzz/arm_spec.h: the arm's numbers for fuzz/plain_arm.h, read from the model
-    file with tomllib (not through the code generator)."""
+# Position units per degree, from the servos' e-manuals: the AX-12A's 1023 over 300 degrees,
+# the X-series' 4096 a turn.
+UNITS_PER_DEG = {"AX-12A": "(1023.0f / 300.0f)", "XL430-W250": "(4096.0f / 360.0f)",
+                 "XM430-W350": "(4096.0f / 360.0f)"}
+
+
+def _xseries() -> tuple[Path, Path]:
+    """(model file, generated folder) of the committed model file made an arm of XM430-W350s."""
+    from uavarm.build import variants
+    _, gen_dir = variants.generate(variants.XM430_EDITS)
+    return gen_dir.parent / "manipulator.toml", gen_dir
+
+
+def _harness_source(name: str) -> Path:
+    return FUZZ / ("app_link.c" if name == "app_link_x" else f"{name}.c")
+
+
+def _include_dirs(name: str) -> list[Path]:
+    """The generated code, the application's headers and arm_spec.h of a harness's model."""
+    if name == "app_link_x":
+        model_file, gen_dir = _xseries()
+        write_arm_spec(model_file, OUT / "xm430")
+        return [gen_dir, firmware.APP / "Inc", OUT / "xm430"]
+    write_arm_spec()
+    return INCLUDE_DIRS
+
+
+def write_arm_spec(model_file: Path = ROOT / "model" / "manipulator.toml", out: Path = OUT) -> None:
+    """out/arm_spec.h: the arm's numbers for fuzz/plain_arm.h, read from the model file with
+    tomllib (not through the code generator)."""
     raw = tomllib.loads(model_file.read_text())
     joints = [raw["joints"][j] for j in ("theta1", "theta2", "theta3")]
     servos = [raw["servo"][j] for j in ("theta1", "theta2", "theta3")]
@@ -121,9 +152,10 @@ def write_arm_spec(model_file: Path = ROOT / "model" / "manipulator.toml") -> No
         f"#define ARM_LEG_HALF_WIDTH_DEG {float(col['leg_half_width'])!r}f",
         f"#define ARM_LEG_DISTANCE {float(col['leg_distance'])!r}f",
         f"#define ARM_SERVO_ZERO {floats(s['zero'] for s in servos)}",
-        f"#define ARM_SERVO_DIRECTION {floats(s['direction'] for s in servos)}", ""])
-    OUT.mkdir(parents=True, exist_ok=True)
-    header = OUT / "arm_spec.h"
+        f"#define ARM_SERVO_DIRECTION {floats(s['direction'] for s in servos)}",
+        f"#define ARM_UNITS_PER_DEG {UNITS_PER_DEG[raw['servo'].get('model', 'AX-12A')]}", ""])
+    out.mkdir(parents=True, exist_ok=True)
+    header = out / "arm_spec.h"
     if not header.exists() or header.read_text() != text:
         header.write_text(text)
 
@@ -133,11 +165,11 @@ def build(name: str) -> Path:
     cc = compiler()
     if cc is None:
         raise FuzzSetupError("clang not found (apt-get install clang libclang-rt-14-dev)")
-    write_arm_spec()
-    sources = [FUZZ / f"{name}.c"] + _c_sources(name)
-    flags = FLAGS + [f"-I{d}" for d in INCLUDE_DIRS]
+    include_dirs = _include_dirs(name)
+    sources = [_harness_source(name)] + _c_sources(name)
+    flags = FLAGS + [f"-I{d}" for d in include_dirs]
     digest = hashlib.sha256(" ".join([cc, *flags]).encode())
-    for path in sources + sorted(p for d in INCLUDE_DIRS for p in d.glob("*.h")):
+    for path in sources + sorted(p for d in include_dirs for p in d.glob("*.h")):
         digest.update(str(path).encode() + b"\0" + path.read_bytes())
     exe = OUT / name
     stamp = OUT / f"{name}.sha256"
@@ -291,7 +323,7 @@ def coverage(name: str) -> str:
     tools = {t: shutil.which(t) or shutil.which(f"{t}-14") for t in ("llvm-profdata", "llvm-cov")}
     if cc is None or None in tools.values():
         raise FuzzSetupError("coverage needs clang, llvm-profdata and llvm-cov (Debian llvm-14)")
-    write_arm_spec()
+    include_dirs = _include_dirs(name)
     out = OUT / "coverage" / name
     out.mkdir(parents=True, exist_ok=True)
     (out / "main.c").write_text(_REPLAY_MAIN)
@@ -299,7 +331,7 @@ def coverage(name: str) -> str:
     targets = _c_sources(name)
     rel = lambda p: str(p.relative_to(ROOT))
     cmd = [cc, "-O0", "-g", "-fprofile-instr-generate", "-fcoverage-mapping", *cbuild.WARNING_FLAGS,
-           *[f"-I{rel(d)}" for d in INCLUDE_DIRS], rel(FUZZ / f"{name}.c"), *map(rel, targets),
+           *[f"-I{rel(d)}" for d in include_dirs], rel(_harness_source(name)), *map(rel, targets),
            str(out / "main.c"), "-lm", "-o", str(exe)]
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     if proc.returncode != 0:

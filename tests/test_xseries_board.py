@@ -259,11 +259,6 @@ def test_an_overheated_xm430_shuts_itself_down_and_the_next_move_parks_the_arm(x
     assert not unsafe_shafts(board)
 
 
-X_EDITS = {"servo.model": "XM430-W350", "servo.baud": 1_000_000, "servo.units_max": 4095,
-           "servo.range_deg": 359.912109375, "servo.theta1.zero": 2048, "servo.theta2.zero": 2048,
-           "servo.theta3.zero": 2048}
-
-
 def test_the_closed_loop_simulator_flies_an_xm430_variant_of_the_model_file():
     """The committed model file with the XM430-W350 edits (the simulator's and the report's
     --set path) flies 10 s of hover on XM430-W350s: the end effector, from the simulated
@@ -271,7 +266,7 @@ def test_the_closed_loop_simulator_flies_an_xm430_variant_of_the_model_file():
     forward kinematics), within 3 mm RMS."""
     from uavarm.build import variants
     from uavarm.sim import closed_loop, scenarios
-    variant = variants.build(X_EDITS)
+    variant = variants.build(variants.XM430_EDITS)
     assert variant.model.servo_model.name == "XM430-W350"
     servos = closed_loop.make_servos(variant.model, 0.0265, True)
     assert [type(s) for s in servos] == [XServo] * 3

@@ -152,6 +152,12 @@ class Variant:
     gen_dir: Path
 
 
+# The committed model file made an arm of XM430-W350s (Protocol 2.0, 4096 units a turn, every
+# zero at the centre, 1 Mbit/s): the X-series variant the benches, the fuzzer and tests build.
+XM430_EDITS = {"servo.model": "XM430-W350", "servo.units_max": 4095, "servo.range_deg": 359.912109375,
+               "servo.baud": 1_000_000, **{f"servo.theta{j}.zero": 2048 for j in (1, 2, 3)}}
+
+
 def edited_text(changes: dict[str, object], base: Path = config.DEFAULT_MODEL) -> str:
     text = Path(base).read_text()
     for key, value in changes.items():
