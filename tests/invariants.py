@@ -3,9 +3,10 @@ every step (tests/test_fault_injection.py). Everything is observed where the har
 would see it: the servo-bus packets (BusLog), the supply switch, and the heartbeat frames.
 
 Oracles, independent of the C under test: tests/oracles.py's plain geometry through
-simboard_tools.pose_ok (joint limits, body, legs, with the servo rounding), the model's
-servo map, the AX-12A's speed unit (0.111 rpm), the model's heartbeat period and tick,
-Protocol 1.0 framing.
+simboard_tools.Servos.poses_ok (joint limits, body, legs, with the servo rounding), the
+model's servo map, the servos' written speed unit (the AX-12A's 0.111 rpm, the X-series'
+0.229), the model's heartbeat period and tick, Protocol 1.0 or 2.0 framing: the board's
+own model file says which servos it has.
 """
 from __future__ import annotations
 
@@ -13,14 +14,13 @@ import math
 
 import numpy as np
 
-from simboard_tools import FAULT, IDS, MODEL, PARK_SPEED, TICK, TRANSIT_SPEED, US, WORKING_SPEED, BusLog, sync_goal_speed, units_to_joints
-from simboard_tools import pose_ok, poses_ok, shaft_units, speed_units_per_s
+from simboard_tools import FAULT, MODEL, TICK, US, BusLog, Servos, shaft_units
 import oracles
 from uavarm.link import messages
 from uavarm.sim.board import SimBoard
 
 HB = MODEL.heartbeat_period
-TORQUE_ENABLE = 24                # AX-12A control table: Torque Enable
+DITHER_RAD = math.radians(300.0) / 1023    # goal moves this small are rounding (an AX-12A's unit)
 
 
 class Invariants:
@@ -47,6 +47,7 @@ class Invariants:
 
     def __init__(self, board: SimBoard, log: BusLog | None = None):
         self.board = board
+        self.servos = Servos(board.model)
         self.log = log or BusLog(board)
         self.n_tx = self.n_hb = 0
         self.checks = 0
@@ -71,21 +72,21 @@ class Invariants:
         return state, since
 
     def check(self) -> None:
-        board, log = self.board, self.log
+        board, log, sv = self.board, self.log, self.servos
         for k in range(self.n_tx, len(log.tx)):
             p = log.tx[k]
             assert log.tx_power[k], f"{p.raw.hex(' ')} sent with the servo power off"
-            assert p.start - self.power_at(p.start)[1] >= MODEL.servo_boot_time - 1e-9, "sent during boot"
+            assert p.start - self.power_at(p.start)[1] >= board.model.servo_boot_time - 1e-9, "sent during boot"
             if p.inst == 0x83:
                 self.limp = False
                 if self._judged_from is None or self._judged_from < self.power_at(p.start)[1]:
                     self._check_shafts(p.start)
                     self._judged_from = p.start
-                goal, speed = sync_goal_speed(p.raw)
-                assert pose_ok(goal), ("unsafe command", goal, units_to_joints(goal))
-                assert speed in ([PARK_SPEED] * 3, [TRANSIT_SPEED] * 3, [WORKING_SPEED] * 3), speed
+                goal, speed = sv.sync_goal_speed(p.raw)
+                assert sv.poses_ok(goal)[0], ("unsafe command", goal, sv.units_to_joints(goal))
+                assert speed in ([sv.park_speed] * 3, [sv.transit_speed] * 3, [sv.working_speed] * 3), speed
                 self._check_move(p.start, goal, speed[0])
-            elif p.inst == 0x03 and p.id == 0xFE and p.params[:2] == bytes([TORQUE_ENABLE, 0]):
+            elif sv.is_torque_off_to_all(p):
                 self.limp = True          # torque off on purpose, until the next SYNC_WRITE
                 self._check_shafts(p.start)
                 self._judged_from = None
@@ -116,40 +117,40 @@ class Invariants:
             shafts = self._shafts()
             before = [s if shafts is not None and abs(g - s) <= 1.0 and abs(g - b) > 1.0 else b
                       for g, s, b in zip(goal, shafts or goal, before)]
-            travel = speed_units_per_s(speed) * max(t - t0, TICK) + 1.0
+            travel = self.servos.speed_units_per_s(speed) * max(t - t0, TICK) + 1.0
             jump = max(abs(a - b) for a, b in zip(goal, before))
             assert jump <= travel, f"goal moved {jump} units at {t:.3f} s; speed {speed} allows {travel:.1f}"
             path = oracles.servo_path(before, goal)
-            assert poses_ok(path).all(), ("unsafe on the way", before, goal)
+            assert self.servos.poses_ok(path).all(), ("unsafe on the way", before, goal)
             self.segments += 1
         self._last_goal = (t, list(goal))
 
     def _check_shafts(self, until: float) -> None:
         """The shafts at every recorded step up to `until` (s): safe by plain geometry while
         judged (the supply on, since the first command after power-on or torque-on)."""
-        board = self.board
+        board, sv = self.board, self.servos
         trace = board.shaft_trace
         n = next((k for k, row in enumerate(trace) if row[0] > until * US + 1e-6), len(trace))
         rows, board.shaft_trace = trace[:n], trace[n:]
         ids = [s.id for s in board.bus.servos]
-        if not rows or self._judged_from is None or sorted(ids) != sorted(IDS):
+        if not rows or self._judged_from is None or sorted(ids) != sorted(sv.ids):
             return
         a = np.array(rows, dtype=float)
         t = a[:, 0] / US
         power_on = max((when for when, on in board.power_log if on and when <= self._judged_from), default=math.inf)
         power_off = min((when for when, on in board.power_log if not on and when > power_on), default=math.inf)
         judged = (a[:, 1] > 0) & (t >= self._judged_from) & (t < power_off)
-        units = a[judged][:, 2:][:, [ids.index(i) for i in IDS]]
+        units = a[judged][:, 2:][:, [ids.index(i) for i in sv.ids]]
         if not len(units):
             return
-        ok = poses_ok(units)
+        ok = sv.poses_ok(units)
         bad = np.flatnonzero(~ok)
         assert not len(bad), (f"shafts in an unsafe pose at {t[judged][bad[0]]:.4f} s", units[bad[0]],
-                               np.degrees(units_to_joints(units[bad[0]])))
+                               np.degrees(sv.units_to_joints(units[bad[0]])))
         self.shaft_steps += len(units)
         if self.kept is not None:
             self.kept.append((t[judged], units))
-        self.clearance = min(self.clearance, float(oracles.clearance_mm(MODEL, units_to_joints(units)).min()))
+        self.clearance = min(self.clearance, float(oracles.clearance_mm(board.model, sv.units_to_joints(units)).min()))
 
     def shafts_at(self, times) -> np.ndarray:
         """The shafts (units, joint order) judged last at or before each of `times` (kept: set
@@ -160,16 +161,18 @@ class Invariants:
 
     def goals(self, since: float = -1.0) -> np.ndarray:
         """The SYNC_WRITE goals (units, one row per tick) sent after `since`."""
-        return np.array([sync_goal_speed(p.raw)[0] for p in self.log.syncs(since)], dtype=float).reshape(-1, 3)
+        return np.array([self.servos.sync_goal_speed(p.raw)[0] for p in self.log.syncs(since)], dtype=float).reshape(-1, 3)
 
-    def check_steady(self, since: float, still: bool = False, dither: int = 1, min_gap: float = 0.1) -> dict:
+    def check_steady(self, since: float, still: bool = False, min_gap: float = 0.1) -> dict:
         """At a fixed set position from `since` on: no joint hunts. On a still board no goal
         turns back at all; on a moving one no goal turns back and forth, turn after turn,
         less than `min_gap` s apart (an oscillation faster than the tilt that drives it:
         three turns within twice `min_gap`). A single quick turn, where a fast move meets
-        the target's own turn, is not an oscillation. Moves of up to `dither` units
-        (rounding flips of a still target) do not count. Returns the figures: per joint the
-        range (units), the largest step (units per tick) and the number of turns."""
+        the target's own turn, is not an oscillation. Moves of up to DITHER_RAD (rounding
+        flips of a still target: an AX-12A's unit, three of an X-series') do not count.
+        Returns the figures: per joint the range (units), the largest step (units per tick)
+        and the number of turns."""
+        dither = max(1, round(DITHER_RAD / self.servos.unit_rad))
         g = self.goals(since)
         turns = [turning_points(g[:, j], dither) for j in range(3)]
         for j, at in enumerate(turns):
@@ -183,7 +186,7 @@ class Invariants:
     def _shafts(self) -> list[float] | None:
         """The simulated shafts' positions, if every servo is on the bus."""
         on_bus = {s.id for s in self.board.bus.servos}
-        return shaft_units(self.board) if on_bus.issuperset(IDS) else None
+        return shaft_units(self.board) if on_bus.issuperset(self.servos.ids) else None
 
     def _check_ticks(self) -> None:
         """While the servos run, a SYNC_WRITE at least every tick: the tick is never starved."""

@@ -4,10 +4,13 @@ bytes out, simulated servos, heartbeat frames back.
 
 Every oracle here is independent of the C under test:
 - what goes on the servo bus: Protocol 1.0 framing as the AX-12A e-manual states it
-  (`split_packets`), and the official DynamixelSDK's packet builders (`sdk_rebuild`);
-- units <-> joint angles and speeds: the AX-12A's written facts (the e-manual: 1023
-  position units over 300 deg, 0.111 rpm per Moving Speed unit) with the model file's
-  zero and direction of each servo;
+  (`split_packets`), Protocol 2.0's for the X-series (`split_packets2`, its CRC the one
+  test_dxl_protocol2 computes bit by bit), and the official DynamixelSDK's packet builders
+  (`sdk_rebuild`);
+- units <-> joint angles and speeds: the servos' written facts (the AX-12A's e-manual: 1023
+  position units over 300 deg, 0.111 rpm per Moving Speed unit; the X-series': 4096 a turn,
+  0.229 rpm per Profile Velocity unit) with the model file's zero and direction of each
+  servo (`Servos`; the module-level names are the committed model file's AX-12As);
 - joint limits and collisions: tests/oracles.py's plain geometry (`pose_ok`).
 """
 from __future__ import annotations
@@ -22,8 +25,10 @@ import numpy as np
 import oracles
 from uavarm.link import messages
 from uavarm.model import config
+from test_dxl_protocol2 import crc16
 from uavarm.sim import ax12_sim
 from uavarm.sim.board import SimBoard, baud_register, specific_force_up
+from uavarm.sim.xseries_sim import unstuffed
 
 MODEL = config.load()
 US = 1_000_000
@@ -42,8 +47,12 @@ FK_TOL_MM = oracles.FK_TOL_MM
 TICK = 1.0 / MODEL.sample_rate
 UNIT_RAD = math.radians(300.0) / 1023          # one position unit (AX-12A e-manual)
 RPM_PER_SPEED_UNIT = 0.111                     # Moving Speed, joint mode (AX-12A e-manual)
-_ZERO = np.array([s.zero for s in MODEL.servos], dtype=float)
-_DIRECTION = np.array([s.direction for s in MODEL.servos], dtype=float)
+
+# Each servo model's written facts: (position unit in rad, speed unit in rpm, protocol,
+# Torque Enable's address), from its e-manual
+SERVO_FACTS = {"AX-12A": (UNIT_RAD, RPM_PER_SPEED_UNIT, 1, 24),
+               "XL430-W250": (2 * math.pi / 4096, 0.229, 2, 64),
+               "XM430-W350": (2 * math.pi / 4096, 0.229, 2, 64)}
 
 
 # ---------------------------------------------------------------- bus packets
@@ -51,22 +60,23 @@ _DIRECTION = np.array([s.direction for s in MODEL.servos], dtype=float)
 @dataclass(frozen=True)
 class Packet:
     """One instruction packet as it left the board: start of its first byte and end of its
-    last stop bit (bus seconds)."""
+    last stop bit (bus seconds), in Dynamixel Protocol 1.0 or 2.0."""
     start: float
     end: float
     raw: bytes
+    protocol: int = 1
 
     @property
     def id(self) -> int:
-        return self.raw[2]
+        return self.raw[2] if self.protocol == 1 else self.raw[4]
 
     @property
     def inst(self) -> int:
-        return self.raw[4]
+        return self.raw[4] if self.protocol == 1 else self.raw[7]
 
     @property
     def params(self) -> bytes:
-        return self.raw[5:-1]
+        return self.raw[5:-1] if self.protocol == 1 else unstuffed(self.raw[8:-2])
 
 
 def split_packets(data: bytes) -> list[bytes]:
@@ -83,6 +93,22 @@ def split_packets(data: bytes) -> list[bytes]:
         assert len(pkt) == n, f"truncated packet: {pkt.hex(' ')}"
         assert pkt[3] >= 2
         assert (~sum(pkt[2:-1])) & 0xFF == pkt[-1], f"bad checksum: {pkt.hex(' ')}"
+        out.append(pkt)
+        i += n
+    return out
+
+
+def split_packets2(data: bytes) -> list[bytes]:
+    """The same for Protocol 2.0 (its e-manual): FF FF FD 00 ID LEN_L LEN_H INST P1..PN CRC_L
+    CRC_H, LEN the bytes after it, the CRC-16 over all before it."""
+    out, i = [], 0
+    data = bytes(data)
+    while i < len(data):
+        assert data[i:i + 4] == b"\xff\xff\xfd\x00", f"no packet header at byte {i}: {data[i:].hex(' ')}"
+        n = 7 + int.from_bytes(data[i + 5:i + 7], "little")
+        pkt = data[i:i + n]
+        assert len(pkt) == n >= 10, f"truncated packet: {pkt.hex(' ')}"
+        assert crc16(pkt[:-2]) == int.from_bytes(pkt[-2:], "little"), f"bad CRC: {pkt.hex(' ')}"
         out.append(pkt)
         i += n
     return out
@@ -137,12 +163,7 @@ def sync_entries(pkt: bytes) -> tuple[int, int, dict[int, bytes]]:
 
 def sync_goal_speed(pkt: bytes) -> tuple[list[int], list[int]]:
     """Goal position and moving speed per joint (model order) of a SYNC_WRITE at 30."""
-    addr, size, entries = sync_entries(pkt)
-    assert (addr, size) == (30, 4), f"SYNC_WRITE of {size} bytes at {addr}"
-    assert sorted(entries) == sorted(IDS)
-    goal = [int.from_bytes(entries[i][0:2], "little") for i in IDS]
-    speed = [int.from_bytes(entries[i][2:4], "little") for i in IDS]
-    return goal, speed
+    return AX.sync_goal_speed(pkt)
 
 
 class BusLog:
@@ -151,6 +172,8 @@ class BusLog:
 
     def __init__(self, board: SimBoard):
         self.board = board
+        protocol = Servos(board.model).protocol
+        split = split_packets if protocol == 1 else split_packets2
         self.tx: list[Packet] = []
         self.replies: list[Packet] = []        # (start, end, bytes) of status packets
         self.tx_power: list[bool] = []          # the supply switch as each packet left
@@ -161,16 +184,16 @@ class BusLog:
             start = max(bus.time, bus._tx_end)
             end = write(data)
             t = start
-            for pkt in split_packets(data):
+            for pkt in split(data):
                 t_end = t + len(pkt) * bus.byte_time
-                self.tx.append(Packet(t, t_end, pkt))
+                self.tx.append(Packet(t, t_end, pkt, protocol))
                 self.tx_power.append(board.servo_power)
                 t = t_end
             assert math.isclose(t, end)
             return end
 
         def logged_reply(start, data):
-            self.replies.append(Packet(start, start + len(data) * bus.byte_time, bytes(data)))
+            self.replies.append(Packet(start, start + len(data) * bus.byte_time, bytes(data), protocol))
             return send_reply(start, data)
 
         bus.write = logged_write
@@ -185,36 +208,115 @@ class BusLog:
 
 # ---------------------------------------------------------------- units and geometry
 
+def relaxed_model(m, unit_rad: float):
+    """The model with every collision boundary moved out by what rounding a joint angle to
+    the nearest servo unit (half of unit_rad per joint; the AX-12A's: 0.147 deg) can move the arm."""
+    half = 0.5 * unit_rad
+    reach = m.L2 + m.L3
+    mm = half * (reach + reach + m.L3) + 1e-3   # joint 1 swings <= reach, 2 and 3 too
+    deg = math.degrees(half) + 1e-4
+    limits = tuple(dataclasses.replace(l, min_deg=l.min_deg - deg, max_deg=l.max_deg + deg) for l in m.limits)
+    return dataclasses.replace(m, limits=limits, body_z=m.body_z + mm, leg_distance=m.leg_distance + mm,
+                               leg_half_width=m.leg_half_width - deg)
+
+
+class Servos:
+    """A model file's servos as the oracles see them: their written facts (SERVO_FACTS) with
+    the model file's ids, zeros, directions, joint limits and speeds."""
+
+    def __init__(self, model: config.Model):
+        self.model = model
+        self.unit_rad, self.rpm_per_speed_unit, self.protocol, self.torque_enable = \
+            SERVO_FACTS[model.servo_model.name]
+        self.ids = [s.id for s in model.servos]
+        self.zero = np.array([s.zero for s in model.servos], dtype=float)
+        self.direction = np.array([s.direction for s in model.servos], dtype=float)
+        self.park_speed, self.transit_speed, self.working_speed = (
+            self.speed_register(rpm) for rpm in (model.park_speed_rpm, model.transit_speed_rpm, model.working_speed_rpm))
+        self.unit_range = [self._unit_range(j) for j in range(3)]
+        self.relaxed = relaxed_model(model, self.unit_rad)
+
+    def joint_units(self, j: int, rad: float) -> float:
+        return float(self.zero[j] + self.direction[j] * rad / self.unit_rad)
+
+    def units_to_joints(self, units) -> np.ndarray:
+        """Joint angles (rad) of servo positions, shape (..., 3)."""
+        return self.direction * (np.asarray(units, dtype=float) - self.zero) * self.unit_rad
+
+    def speed_register(self, rpm: float) -> int:
+        """The speed register's value nearest a speed in rpm (1..1023; 0 would mean no limit)."""
+        return min(1023, max(1, round(rpm / self.rpm_per_speed_unit)))
+
+    def speed_units_per_s(self, speed: int) -> float:
+        """Position units per second of a speed register's value."""
+        return speed * self.rpm_per_speed_unit * 360 / 60 / math.degrees(self.unit_rad)
+
+    def _unit_range(self, j: int) -> tuple[int, int]:
+        m = self.model
+        ends = sorted(self.joint_units(j, math.radians(d)) for d in (m.limits[j].min_deg, m.limits[j].max_deg))
+        return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)
+
+    def poses_ok(self, units) -> np.ndarray:
+        """Servo positions (N, 3) inside the servos' unit ranges of the joint limits, in poses
+        the plain-geometry check accepts up to the servo rounding."""
+        u = np.atleast_2d(np.asarray(units, dtype=float))
+        lo, hi = np.array(self.unit_range, dtype=float).T
+        status, _ = oracles.check_pose(self.relaxed, self.units_to_joints(u))
+        return np.all((u >= lo) & (u <= hi), axis=1) & (status == 0)
+
+    def sync_goal_speed(self, pkt: bytes) -> tuple[list[int], list[int]]:
+        """Goal position and speed per joint (model order) of a SYNC_WRITE: the AX-12A's of Goal
+        Position(30) and Moving Speed, 2 bytes each; the X-series' of Profile Velocity(112) and
+        Goal Position(116), 4 bytes each."""
+        if self.protocol == 1:
+            addr, size, entries = sync_entries(pkt)
+            assert (addr, size) == (30, 4), f"SYNC_WRITE of {size} bytes at {addr}"
+            goal_at, speed_at, n = 0, 2, 2
+        else:
+            p = unstuffed(pkt[8:-2])
+            addr, size, raw = int.from_bytes(p[0:2], "little"), int.from_bytes(p[2:4], "little"), p[4:]
+            assert (addr, size) == (112, 8) and len(raw) % 9 == 0, f"SYNC_WRITE of {size} bytes at {addr}"
+            entries = {raw[k]: raw[k + 1:k + 9] for k in range(0, len(raw), 9)}
+            goal_at, speed_at, n = 4, 0, 4
+        assert sorted(entries) == sorted(self.ids)
+        goal = [int.from_bytes(entries[i][goal_at:goal_at + n], "little") for i in self.ids]
+        speed = [int.from_bytes(entries[i][speed_at:speed_at + n], "little") for i in self.ids]
+        return goal, speed
+
+    def is_torque_off_to_all(self, p: Packet) -> bool:
+        """A broadcast WRITE of Torque Enable 0 (the arm limp on purpose)."""
+        address = bytes([self.torque_enable]) if self.protocol == 1 else self.torque_enable.to_bytes(2, "little")
+        return p.inst == INST_WRITE and p.id == BROADCAST_ID and p.params == address + b"\0"
+
+
+AX = Servos(MODEL)
+
+
 def joint_units(j: int, rad: float) -> float:
-    return float(_ZERO[j] + _DIRECTION[j] * rad / UNIT_RAD)
+    return AX.joint_units(j, rad)
 
 
 def units_to_joints(units) -> np.ndarray:
     """Joint angles (rad) of servo positions, shape (..., 3)."""
-    return _DIRECTION * (np.asarray(units, dtype=float) - _ZERO) * UNIT_RAD
+    return AX.units_to_joints(units)
 
 
 PARK_Q = [math.radians(d) for d in MODEL.park_deg]
 PARK_UNITS = [joint_units(j, q) for j, q in enumerate(PARK_Q)]
+
+
 def speed_register(rpm: float) -> int:
     """The Moving Speed value nearest a speed in rpm (1..1023; 0 would mean no limit)."""
-    return min(1023, max(1, round(rpm / RPM_PER_SPEED_UNIT)))
+    return AX.speed_register(rpm)
 
 
-def _unit_range(j: int) -> tuple[int, int]:
-    ends = sorted(joint_units(j, math.radians(d)) for d in (MODEL.limits[j].min_deg, MODEL.limits[j].max_deg))
-    return math.ceil(ends[0] - 1e-9), math.floor(ends[1] + 1e-9)
-
-
-PARK_SPEED = speed_register(MODEL.park_speed_rpm)
-TRANSIT_SPEED = speed_register(MODEL.transit_speed_rpm)
-WORKING_SPEED = speed_register(MODEL.working_speed_rpm)
-UNIT_RANGE = [_unit_range(j) for j in range(3)]
+PARK_SPEED, TRANSIT_SPEED, WORKING_SPEED = AX.park_speed, AX.transit_speed, AX.working_speed
+UNIT_RANGE = AX.unit_range
 
 
 def speed_units_per_s(speed: int) -> float:
     """Position units per second of a Moving Speed value."""
-    return speed * RPM_PER_SPEED_UNIT * 360 / 60 / math.degrees(UNIT_RAD)
+    return AX.speed_units_per_s(speed)
 
 
 def max_unit_step(goals) -> int:
@@ -229,31 +331,16 @@ def ee_of_units(units) -> np.ndarray:
 
 
 def shaft_units(board: SimBoard) -> list[float]:
-    return [board.bus.servo(i).position for i in IDS]
+    return [board.bus.servo(i).position for i in Servos(board.model).ids]
 
 
-def relaxed_model(m, unit_rad: float):
-    """The model with every collision boundary moved out by what rounding a joint angle to
-    the nearest servo unit (half of unit_rad per joint; the AX-12A's: 0.147 deg) can move the arm."""
-    half = 0.5 * unit_rad
-    reach = m.L2 + m.L3
-    mm = half * (reach + reach + m.L3) + 1e-3   # joint 1 swings <= reach, 2 and 3 too
-    deg = math.degrees(half) + 1e-4
-    limits = tuple(dataclasses.replace(l, min_deg=l.min_deg - deg, max_deg=l.max_deg + deg) for l in m.limits)
-    return dataclasses.replace(m, limits=limits, body_z=m.body_z + mm, leg_distance=m.leg_distance + mm,
-                               leg_half_width=m.leg_half_width - deg)
-
-
-RELAXED = relaxed_model(MODEL, UNIT_RAD)
+RELAXED = AX.relaxed
 
 
 def poses_ok(units) -> np.ndarray:
     """Servo positions (N, 3) inside the servos' unit ranges of the joint limits, in poses
     the plain-geometry check accepts up to the servo rounding."""
-    u = np.atleast_2d(np.asarray(units, dtype=float))
-    lo, hi = np.array(UNIT_RANGE, dtype=float).T
-    status, _ = oracles.check_pose(RELAXED, units_to_joints(u))
-    return np.all((u >= lo) & (u <= hi), axis=1) & (status == 0)
+    return AX.poses_ok(units)
 
 
 def pose_ok(goal_units) -> bool:
