@@ -102,6 +102,13 @@ static const uint32_t STEP_US[8] = { 50u, 250u, 1000u, 2500u, 10000u, 100000u, 1
 #define REG_TEMPERATURE 146
 #define REG_INDIRECT_ADDRESS 168  /* Indirect Address k at 168 + 2 (k - 1): Indirect Data k, 224 + k - 1 */
 #define REG_INDIRECT_DATA 224
+/* the driver's buffers (servo_bus.h) */
+#define BUS_PARSER parser2
+#define BUS_RX rx2_buf
+#define BUS_DIRECT direct2
+#define BUS_SYNC sync2_pkt
+#define BUS_SYNC_LEN sync2_len
+#define STATUS_MIN_LEN DXL2_STATUS_MIN_LEN
 #else
 #define N_REGS 50
 #define REG_ID 3
@@ -112,6 +119,12 @@ static const uint32_t STEP_US[8] = { 50u, 250u, 1000u, 2500u, 10000u, 100000u, 1
 #define REG_PRESENT 36            /* 2 bytes */
 #define REG_VOLTAGE 42            /* 1 byte */
 #define REG_TEMPERATURE 43
+#define BUS_PARSER parser
+#define BUS_RX rx_buf
+#define BUS_DIRECT direct
+#define BUS_SYNC sync_pkt
+#define BUS_SYNC_LEN sync_len
+#define STATUS_MIN_LEN DXL_STATUS_MIN_LEN
 #endif
 
 static const uint8_t IDS[N_SERVOS] = { MODEL_SERVO1_ID, MODEL_SERVO2_ID, MODEL_SERVO3_ID };
@@ -631,19 +644,11 @@ static void poll_and_check(void)
     CHECK(isfinite(APP.stab.attitude.roll) && isfinite(APP.stab.attitude.pitch));
     CHECK(APP.bus.state <= SBUS_FAILED);
     /* buffers inside app_t, where AddressSanitizer does not look */
-#if MODEL_DXL_PROTOCOL == 2u
-    CHECK(APP.bus.parser2.buf == APP.bus.rx2_buf && APP.bus.parser2.size <= sizeof APP.bus.rx2_buf);
-    CHECK(APP.bus.parser2.len <= APP.bus.parser2.size);
-    CHECK(APP.bus.direct_len <= DXL2_STATUS_MIN_LEN + APP.bus.expect_params
-          && DXL2_STATUS_MIN_LEN + APP.bus.expect_params <= sizeof APP.bus.direct2);
-    CHECK(APP.bus.sync2_len <= sizeof APP.bus.sync2_pkt);
-#else
-    CHECK(APP.bus.parser.buf == APP.bus.rx_buf && APP.bus.parser.size <= sizeof APP.bus.rx_buf);
-    CHECK(APP.bus.parser.len <= APP.bus.parser.size);
-    CHECK(APP.bus.direct_len <= DXL_STATUS_MIN_LEN + APP.bus.expect_params
-          && DXL_STATUS_MIN_LEN + APP.bus.expect_params <= sizeof APP.bus.direct);
-    CHECK(APP.bus.sync_len <= sizeof APP.bus.sync_pkt);
-#endif
+    CHECK(APP.bus.BUS_PARSER.buf == APP.bus.BUS_RX && APP.bus.BUS_PARSER.size <= sizeof APP.bus.BUS_RX);
+    CHECK(APP.bus.BUS_PARSER.len <= APP.bus.BUS_PARSER.size);
+    CHECK(APP.bus.direct_len <= STATUS_MIN_LEN + APP.bus.expect_params
+          && STATUS_MIN_LEN + APP.bus.expect_params <= sizeof APP.bus.BUS_DIRECT);
+    CHECK(APP.bus.BUS_SYNC_LEN <= sizeof APP.bus.BUS_SYNC);
     CHECK(APP.link.count <= APP.link.len);
 }
 

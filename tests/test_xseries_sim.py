@@ -123,6 +123,23 @@ def test_writes_and_reads_through_the_sdk():
     assert PH.read4ByteTxRx(port, 1, 112) == (123, sdk.COMM_SUCCESS, 0)
 
 
+def test_indirect_data_reads_what_its_indirect_address_points_at():
+    """e-manual, Indirect Address/Data: Indirect Address 1..4 (168..174) pointed at Present
+    Position(132..135), a READ of Indirect Data 1..4 (224..227) is the position; at power-on
+    each Indirect Address holds its own Indirect Data's address (224 + k - 1), which reads 0."""
+    bus, port = make(XServo(XM430_W350, 1, position=1234, table=FAST))
+    assert PH.read4ByteTxRx(port, 1, 224) == (0, sdk.COMM_SUCCESS, 0)
+    assert PH.read2ByteTxRx(port, 1, 168) == (224, sdk.COMM_SUCCESS, 0)
+    assert PH.read2ByteTxRx(port, 1, 222) == (251, sdk.COMM_SUCCESS, 0)    # Indirect Address 28
+    for k in range(4):
+        assert PH.write2ByteTxRx(port, 1, 168 + 2 * k, 132 + k) == (sdk.COMM_SUCCESS, 0)
+    assert PH.read4ByteTxRx(port, 1, 224) == (1234, sdk.COMM_SUCCESS, 0)
+    assert PH.write2ByteTxRx(port, 1, 168, 0) == (sdk.COMM_SUCCESS, 0x04), "an EEPROM address: Data Range error"
+    assert PH.read4ByteTxRx(port, 1, 224) == (1234, sdk.COMM_SUCCESS, 0)
+    bus.servos[0].power_on()
+    assert PH.read4ByteTxRx(port, 1, 224) == (0, sdk.COMM_SUCCESS, 0), "the map is RAM"
+
+
 def test_corrupted_instruction_gets_no_answer():
     bus, port = make()
     good = sdk_packet("write1ByteTxOnly", 1, 65, 1, protocol=2.0)
