@@ -385,6 +385,7 @@ def params_context(m: config.Model):
         "rad_per_unit": float32_literal(1 / servo.units_per_rad(m)),
         "step_per_decivolt": float32_literal(servo.supply_step_per_decivolt(m)),
         "gap_max": servo.gap_max_units(m),
+        "track_tolerance": servo.track_tolerance_units(m),
         "angle_limits": [servo.unit_range(m, j) for j in range(3)],
         "baud_register": servo_models.baud_register(m.servo_model, m.servo_baud),
         "return_delay": m.servo_return_delay_us // 2,

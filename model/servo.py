@@ -73,6 +73,16 @@ def supply_step_per_decivolt(m: Model) -> sp.Expr:
     return margin * rpm_per_decivolt * 2 * sp.pi / 60 / sp.nsimplify(m.sample_rate, rational=True)
 
 
+# How far (deg) a shaft may stand from its goal and still follow it: an AX-12A's compliance and
+# sag under the arm's weight (8 of its units); the same angle on any servo.
+TRACK_TOLERANCE_DEG = 2.35
+
+
+def track_tolerance_units(m: Model) -> int:
+    """TRACK_TOLERANCE_DEG in the servo's position units (the AX-12A's 8, an X-series' 27)."""
+    return round(math.radians(TRACK_TOLERANCE_DEG) * float(units_per_rad(m)))
+
+
 def gap_max_units(m: Model) -> int:
     """How far (units) a shaft may trail its goal before the goals wait for it: twice its
     response lag at the working speed and one working step. Further

@@ -2,7 +2,8 @@
  * servo's own Shutdown) or one that creeps away from its goal (slipping, failing position
  * sensor) is noticed from the driver's status reads, without a model of the load:
  *
- *   a reading is "not tracking" when the shaft is more than TRACK_TOL_UNITS from the goal
+ *   a reading is "not tracking" when the shaft is more than MODEL_TRACK_TOL_UNITS (2.35 deg in
+ *   the servo's units: an AX-12A's 8, an X-series' 27) from the goal
  *   it was sent and, since the servo's previous reading, it moved toward that goal by less
  *   than TRACK_MIN_PROGRESS of what its Moving Speed allows (or of the distance left);
  *   a reading further than MODEL_SERVO_GAP_MAX from its goal is "behind" (a servo slower
@@ -31,7 +32,6 @@ extern "C" {
 #define TRACK_MIN_PROGRESS 0.25f   /* (float: outside the cffi block) */
 
 /* cffi:begin */
-#define TRACK_TOL_UNITS 8          /* 2.3 deg */
 #define TRACK_FAULT_US 250000u
 
 typedef struct {

@@ -20,7 +20,7 @@ static inline __attribute__((always_inline)) bool tracks(const track_servo_t *w,
                                                         uint16_t speed, uint32_t dt_us)
 {
     const int32_t error = (int32_t)goal - (int32_t)pos;
-    if (abs32(error) <= TRACK_TOL_UNITS) return true;
+    if (abs32(error) <= (int32_t)MODEL_TRACK_TOL_UNITS) return true;
     if (abs32(error) > (int32_t)MODEL_SERVO_GAP_MAX) return false;   /* behind */
     const int32_t left = (int32_t)goal - (int32_t)w->last_position;
     const int32_t moved = ((int32_t)pos - (int32_t)w->last_position) * (left < 0 ? -1 : 1);
