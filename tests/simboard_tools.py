@@ -27,7 +27,8 @@ from uavarm.link import messages
 from uavarm.model import config
 from test_dxl_protocol2 import crc16
 from uavarm.sim import ax12_sim
-from uavarm.sim.board import SimBoard, baud_register, specific_force_up
+from uavarm.build import variants
+from uavarm.sim.board import SimBoard, baud_register, make_servo, specific_force_up
 from uavarm.sim.xseries_sim import unstuffed
 
 MODEL = config.load()
@@ -381,6 +382,40 @@ def make_board(at=None, lag: float | None = None, **kw) -> SimBoard:
                             table={"baud_rate": baud_register(MODEL.servo_baud)})
               for s, u in zip(MODEL.servos, at)]
     return SimBoard(MODEL, servos=servos, **kw)
+
+
+# The servo families the end-to-end tests run on: the committed model file's AX-12As, and the
+# same arm made of XM430-W350s (uavarm/build/variants.py's XM430_EDITS), its firmware built
+# from that model file.
+FAMILIES = ["AX-12A", "XM430-W350"]
+_X = {}
+
+
+def family_servos(family: str) -> Servos:
+    """The servos of the committed model file (AX-12A), or of it made an XM430-W350 arm."""
+    if family == "AX-12A":
+        return AX
+    if not _X:
+        variant = variants.build(variants.XM430_EDITS)
+        _X.update(servos=Servos(variant.model), lib=(variant.ffi, variant.lib))
+    return _X["servos"]
+
+
+def family_board(family, at=None, lag: float | None = None, **kw) -> SimBoard:
+    """A SimBoard of `family`'s servos resting at joint angles `at` (rad; default the park
+    pose), their shafts lagging `lag` s (default the model file's) behind their profile."""
+    sv = family_servos(family)
+    m = sv.model
+    q = [math.radians(d) for d in m.park_deg] if at is None else at
+    lag = m.servo_response_lag if lag is None else lag
+    servos = [make_servo(m, j, position=round(sv.joint_units(j, q[j])), lag=lag, deadband=lag > 0) for j in range(3)]
+    return SimBoard(m, servos=servos, lib=family_lib(family), **kw)
+
+
+def family_lib(family: str):
+    """(ffi, lib) of `family`'s firmware build, for SimBoard (None: the committed one's)."""
+    family_servos(family)
+    return None if family == "AX-12A" else _X["lib"]
 
 
 def run_until(board: SimBoard, cond, timeout: float, step: float = 0.005) -> float | None:

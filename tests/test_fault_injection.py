@@ -4,6 +4,9 @@ hardware would produce it (servo status bytes, the servo shafts, the MPU-6050's 
 the link's bytes, time), with tests/invariants.py's safety invariants checked after every
 step, the fault flagged in the heartbeat, and recovery once it clears.
 
+The servo-shaft faults (stuck, slowed, drifting, and sluggish but healthy) run on AX-12As and
+on XM430-W350s (simboard_tools.FAMILIES); the rest on AX-12As.
+
 Oracles, independent of the C under test: the AX-12A e-manual's error byte (bit 0 input
 voltage, 1 angle limit, 2 overheating, 3 range, 4 checksum, 5 overload, 6 instruction) and
 Protocol 1.0 status framing; the MPU-6050 register map (INT_STATUS DATA_RDY_INT, int16
@@ -19,14 +22,14 @@ import random
 import numpy as np
 import pytest
 
+import oracles
 from invariants import Invariants
 from simboard_tools import (
-    FAULT, FK_TOL_MM, IDS, MODEL, PARK_SPEED, PARK_UNITS, TICK, WORKING_SPEED, BusLog, ee_of_units, make_board, ready, running,
-    speed_units_per_s,
-    shaft_units, sync_goal_speed,
+    FAMILIES, FAULT, FK_TOL_MM, IDS, MODEL, PARK_SPEED, TICK, WORKING_SPEED, BusLog, Servos, family_lib, family_servos,
+    make_board, ready, running, shaft_units, sync_goal_speed,
 )
 from uavarm.link import llcp, messages
-from uavarm.sim import ax12_sim
+from uavarm.sim import ax12_sim, xseries_sim
 from uavarm.sim.board import SimBoard, baud_register
 
 TARGET = (70.0, -20.0, -95.0)
@@ -41,12 +44,15 @@ def set_position(board, p):
 
 
 def at(board, p, tol=FK_TOL_MM) -> bool:
-    return bool(np.linalg.norm(ee_of_units(shaft_units(board)) - np.asarray(p)) <= tol)
+    ee = oracles.arm_points(board.model, Servos(board.model).units_to_joints(shaft_units(board)))[2]
+    return bool(np.linalg.norm(ee - np.asarray(p)) <= tol)
 
 
 def parked(board, tol=1.0) -> bool:
     """Within tol units of the park goal: a lagging shaft stops within its compliance margin (a unit)."""
-    return all(abs(s - round(u)) <= tol for s, u in zip(shaft_units(board), PARK_UNITS))
+    sv = Servos(board.model)
+    park = [round(sv.joint_units(j, math.radians(d))) for j, d in enumerate(board.model.park_deg)]
+    return all(abs(s - u) <= tol for s, u in zip(shaft_units(board), park))
 
 
 def engaged_board(p=TARGET, **kw):
@@ -168,16 +174,16 @@ def test_truncated_status_packets_time_out_and_recover(cut):
 
 # ---------------------------------------------------------------- servo shafts
 
-class FaultyAX12(ax12_sim.AX12):
-    """An AX-12A whose shaft can be stuck (does not follow its goal: a jammed gear) or
-    drifting (overpowered by a load it cannot hold, or a slipping gear train: it creeps
-    away from its goal at `drift` units/s), whatever it is commanded, or slowed (a load
-    it turns at only `slow` of its speed). Present Position reads the shaft, as the servo's
-    potentiometer does."""
+class ShaftFaults:
+    """A servo whose shaft can be stuck (does not follow its goal: a jammed gear) or drifting
+    (overpowered by a load it cannot hold, or a slipping gear train: it creeps away from its
+    goal at `drift` units/s), whatever it is commanded, or slowed (a load it turns at only
+    `slow` of its speed). Present Position reads the shaft, as the servo's sensor does."""
 
     stuck = False
     drift = 0.0
     slow = 1.0
+    units_max = 0.0
 
     def max_speed(self):
         return super().max_speed() * self.slow
@@ -187,22 +193,37 @@ class FaultyAX12(ax12_sim.AX12):
             self._profile = self._pos
         elif self.drift:
             away = -1.0 if self.register("goal_position") >= self._pos else 1.0
-            self._pos = self._profile = min(max(self._pos + away * self.drift * h, 0.0), 1023.0)
+            self._pos = self._profile = min(max(self._pos + away * self.drift * h, 0.0), self.units_max)
         else:
             super()._advance(h)
 
 
-def faulty_board(j, **servo_kw):
+class FaultyAX12(ShaftFaults, ax12_sim.AX12):
+    units_max = 1023.0
+
+
+class FaultyXServo(ShaftFaults, xseries_sim.XServo):
+    units_max = 4095.0
+
+
+def faulty_board(j, family="AX-12A", **servo_kw):
+    """family's servos at the park pose, servo j a faulty one."""
+    sv = family_servos(family)
     servos = []
-    for k, s in enumerate(MODEL.servos):
-        cls = FaultyAX12 if k == j else ax12_sim.AX12
-        servos.append(cls(s.id, position=float(round(PARK_UNITS[k])),
-                          table={"baud_rate": baud_register(MODEL.servo_baud)}, **(servo_kw if k == j else {})))
+    for k, s in enumerate(sv.model.servos):
+        at = float(round(sv.joint_units(k, math.radians(sv.model.park_deg[k]))))
+        kw = servo_kw if k == j else {}
+        if family == "AX-12A":
+            cls = FaultyAX12 if k == j else ax12_sim.AX12
+            servos.append(cls(s.id, position=at, table={"baud_rate": baud_register(MODEL.servo_baud)}, **kw))
+        else:
+            cls = FaultyXServo if k == j else xseries_sim.XServo
+            servos.append(cls(xseries_sim.MODELS[family], s.id, position=at, table={"baud_rate": 3}, **kw))
     return servos
 
 
-def engaged_faulty(j, **servo_kw):
-    board = SimBoard(MODEL, servos=faulty_board(j, **servo_kw))
+def engaged_faulty(j, family="AX-12A", **servo_kw):
+    board = SimBoard(family_servos(family).model, servos=faulty_board(j, family, **servo_kw), lib=family_lib(family))
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
     assert inv.run_until(lambda: ready(board), 1.0) is not None
@@ -212,20 +233,22 @@ def engaged_faulty(j, **servo_kw):
     return board, inv, board.bus.servo(IDS[j])
 
 
+@pytest.mark.parametrize("family", FAMILIES)
 @pytest.mark.parametrize("j", [0, 1, 2])
-def test_stuck_servo_is_flagged_the_arm_parks_and_recovers(j):
+def test_stuck_servo_is_flagged_the_arm_parks_and_recovers(j, family):
     """Servo j's shaft stops following while the arm moves to another target: servo_tracking
     within 0.5 s, the arm disengages and parks (park speed), engage is refused while the
     shaft is stuck; freed, it follows to the park pose, the flag clears and engage works."""
-    board, inv, servo = engaged_faulty(j)
+    board, inv, servo = engaged_faulty(j, family)
     servo.stuck = True
     set_position(board, OTHER)
     t0 = board.time
     t_flag = inv.flagged("servo_tracking", 1.0)
     hb = board.heartbeats[-1]
     assert hb["engaged"] == 0 and hb["enabled"] == 1, hb
-    t_park = min(s.start for s in inv.log.syncs(t0) if sync_goal_speed(s.raw)[1] == [PARK_SPEED] * 3)
-    print(f"\nservo {j + 1} stuck: parking {(t_park - t0) * 1e3:.0f} ms after the move began, "
+    sv = inv.servos
+    t_park = min(s.start for s in inv.log.syncs(t0) if sv.sync_goal_speed(s.raw)[1] == [sv.park_speed] * 3)
+    print(f"\n{family}: servo {j + 1} stuck: parking {(t_park - t0) * 1e3:.0f} ms after the move began, "
           f"flagged in the heartbeat at +{(t_flag - t0) * 1e3:.0f} ms")
     assert t_park - t0 <= 0.5
     lagging = {hb["lagging_joints"] for hb in board.heartbeats if hb["faults"] & FAULT["servo_lagging"]}
@@ -243,8 +266,9 @@ def test_stuck_servo_is_flagged_the_arm_parks_and_recovers(j):
     assert hb["engaged"] == 1 and hb["faults"] == 0, hb
 
 
+@pytest.mark.parametrize("family", FAMILIES)
 @pytest.mark.parametrize("slow", [0.3, 0.1])
-def test_a_slowed_servo_is_flagged_by_joint_and_the_goals_wait_for_it(slow):
+def test_a_slowed_servo_is_flagged_by_joint_and_the_goals_wait_for_it(slow, family):
     """Joint 1's servo turns at 30 % or 10 % of its speed (a load it can hardly move; it
     reports its supply as ever) while the arm moves to another target, joint 1 64 deg round:
     its shaft falls behind, servo_lagging names joint 1 (lagging_joints), and the goals wait
@@ -253,7 +277,7 @@ def test_a_slowed_servo_is_flagged_by_joint_and_the_goals_wait_for_it(slow):
     between two readings of it (three ticks); every shaft stays clear (Invariants). At 30 %
     it catches up while the goals wait and the arm gets there; at 10 % it does not within
     0.25 s: servo_tracking, the arm parks."""
-    board, inv, servo = engaged_faulty(0)
+    board, inv, servo = engaged_faulty(0, family)
     inv.kept = []
     servo.slow = slow
     set_position(board, OTHER)
@@ -267,32 +291,38 @@ def test_a_slowed_servo_is_flagged_by_joint_and_the_goals_wait_for_it(slow):
         assert inv.run_until(lambda: board.heartbeats[-1]["engaged"] == 0, 1.0) is not None
     named = {hb["lagging_joints"] for hb in board.heartbeats if hb["faults"] & FAULT["servo_lagging"]}
     assert named == {1}, named
-    working = speed_units_per_s(WORKING_SPEED)
+    sv = inv.servos
+    working = sv.speed_units_per_s(sv.working_speed)
     gap_max = math.ceil(working * (2 * MODEL.servo_response_lag + TICK)) + len(IDS) * working * TICK + 1
     syncs = inv.log.syncs(t0)
     shafts = inv.shafts_at([p.start for p in syncs])[:, 0]
-    gaps = [abs(sync_goal_speed(p.raw)[0][0] - s) for p, s in zip(syncs, shafts)]
-    print(f"\njoint 1's servo at {slow:.0%} of its speed: {'there' if slow > 0.2 else 'parked'} "
+    gaps = [abs(sv.sync_goal_speed(p.raw)[0][0] - s) for p, s in zip(syncs, shafts)]
+    print(f"\n{family}: joint 1's servo at {slow:.0%} of its speed: {'there' if slow > 0.2 else 'parked'} "
           f"{board.time - t0:.2f} s after the target was set, the goal at most {max(gaps):.0f} units ahead of the "
           f"shaft (allowed {gap_max:.0f})")
     assert max(gaps) <= gap_max
 
 
-@pytest.mark.parametrize("drift", [30.0, 200.0])
-def test_drifting_servo_is_flagged_the_arm_parks_and_recovers(drift):
-    """Servo 2's shaft creeps away from its goal (units/s) while the arm holds its target:
+TRACK_TOL_DEG = 2.35     # the fault table: a shaft this near its goal follows it
+
+
+@pytest.mark.parametrize("family", FAMILIES)
+@pytest.mark.parametrize("drift_deg", [8.8, 58.7])      # an AX-12A's 30 and 200 units/s
+def test_drifting_servo_is_flagged_the_arm_parks_and_recovers(drift_deg, family):
+    """Servo 2's shaft creeps away from its goal (deg/s) while the arm holds its target:
     servo_tracking once it is more than the tolerance off and not coming back, the arm
     parks; with the drift gone it follows again, the flag clears, engage works."""
-    board, inv, servo = engaged_faulty(1)
-    servo.drift = drift
+    board, inv, servo = engaged_faulty(1, family)
+    sv = inv.servos
+    servo.drift = math.radians(drift_deg) / sv.unit_rad
     t0 = board.time
     inv.flagged("servo_tracking", 0.9)
     hb = board.heartbeats[-1]
     assert hb["engaged"] == 0, hb
-    parked_from = [s.start for s in inv.log.syncs(t0) if sync_goal_speed(s.raw)[1] == [PARK_SPEED] * 3]
-    print(f"\nservo 2 drifting {drift:.0f} units/s: parking {(parked_from[0] - t0) * 1e3:.0f} ms after it began")
-    # the tolerance (8 units) reached, plus TRACK_FAULT_US of not tracking, plus a read round
-    assert parked_from[0] - t0 <= 8 / drift + 0.25 + 0.1
+    parked_from = [s.start for s in inv.log.syncs(t0) if sv.sync_goal_speed(s.raw)[1] == [sv.park_speed] * 3]
+    print(f"\n{family}: servo 2 drifting {drift_deg:.1f} deg/s: parking {(parked_from[0] - t0) * 1e3:.0f} ms after it began")
+    # the tolerance reached, plus TRACK_FAULT_US of not tracking, plus a read round
+    assert parked_from[0] - t0 <= TRACK_TOL_DEG / drift_deg + 0.25 + 0.1
     servo.drift = 0.0
     assert inv.run_until(lambda: parked(board), 2.0) is not None
     inv.clear("servo_tracking", 1.0)
@@ -300,12 +330,18 @@ def test_drifting_servo_is_flagged_the_arm_parks_and_recovers(drift):
     assert inv.run_until(lambda: at(board, TARGET), 1.5) is not None
 
 
-def test_sluggish_but_healthy_servos_are_not_flagged():
+@pytest.mark.parametrize("family", FAMILIES)
+def test_sluggish_but_healthy_servos_are_not_flagged(family):
     """No false alarm: servos at 9.5 V (slower) with a 50 ms lag behind their profile, moved
     between two targets and parked repeatedly, never raise servo_tracking."""
-    servos = [ax12_sim.AX12(s.id, position=512.0, voltage=9.5, time_constant=0.05,
-                            table={"baud_rate": baud_register(MODEL.servo_baud)}) for s in MODEL.servos]
-    board = SimBoard(MODEL, servos=servos)
+    sv = family_servos(family)
+    if family == "AX-12A":
+        servos = [ax12_sim.AX12(s.id, position=512.0, voltage=9.5, time_constant=0.05,
+                                table={"baud_rate": baud_register(MODEL.servo_baud)}) for s in MODEL.servos]
+    else:
+        servos = [xseries_sim.XServo(xseries_sim.MODELS[family], s.id, position=2048.0, voltage=9.5,
+                                     time_constant=0.05, table={"baud_rate": 3}) for s in sv.model.servos]
+    board = SimBoard(sv.model, servos=servos, lib=family_lib(family))
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
     inv.run(2.0)

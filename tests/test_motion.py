@@ -22,38 +22,13 @@ import pytest
 
 import oracles
 from invariants import Invariants, quickest_three_turns, turning_points
-from simboard_tools import AX, FAULT, BusLog, Servos, level_ik_ok, ready, shaft_units
-from uavarm.build import variants
-from uavarm.sim.board import Gravity, Rocking, SimBoard, make_servo
+from simboard_tools import AX, FAMILIES, FAULT, BusLog, Servos, family_board, family_servos, level_ik_ok, ready, \
+    shaft_units
+from uavarm.sim.board import Gravity, Rocking
 
 KEEP_ALIVE = 0.25          # s between set_position frames (the drone's keep-alive)
-FAMILIES = ["AX-12A", "XM430-W350"]
-_X = {}
-
-
-def family_servos(family: str) -> Servos:
-    """The servos of the committed model file (AX-12A), or of it made an XM430-W350 arm."""
-    if family == "AX-12A":
-        return AX
-    if not _X:
-        variant = variants.build(variants.XM430_EDITS)
-        _X.update(servos=Servos(variant.model), lib=(variant.ffi, variant.lib))
-    return _X["servos"]
-
-
 def set_position(board, p):
     board.send("set_position", x=float(p[0]), y=float(p[1]), z=float(p[2]))
-
-
-def family_board(family, at=None, lag: float | None = None, **kw) -> SimBoard:
-    """A SimBoard of `family`'s servos resting at joint angles `at` (rad; default the park
-    pose), their shafts lagging `lag` s (default the model file's) behind their profile."""
-    sv = family_servos(family)
-    m = sv.model
-    q = [math.radians(d) for d in m.park_deg] if at is None else at
-    lag = m.servo_response_lag if lag is None else lag
-    servos = [make_servo(m, j, position=round(sv.joint_units(j, q[j])), lag=lag, deadband=lag > 0) for j in range(3)]
-    return SimBoard(m, servos=servos, lib=_X.get("lib") if family != "AX-12A" else None, **kw)
 
 
 def engaged(p=None, motion=None, at=None, family="AX-12A", **physics):
