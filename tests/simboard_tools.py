@@ -23,11 +23,11 @@ import dynamixel_sdk as sdk
 import numpy as np
 
 import oracles
+from test_dxl_protocol2 import crc16
+from uavarm.build import variants
 from uavarm.link import messages
 from uavarm.model import config
-from test_dxl_protocol2 import crc16
 from uavarm.sim import ax12_sim
-from uavarm.build import variants
 from uavarm.sim.board import SimBoard, baud_register, make_servo, specific_force_up
 from uavarm.sim.xseries_sim import unstuffed
 

@@ -27,6 +27,8 @@ from simboard_tools import AX, FAMILIES, FAULT, BusLog, Servos, family_board, fa
 from uavarm.sim.board import Gravity, Rocking
 
 KEEP_ALIVE = 0.25          # s between set_position frames (the drone's keep-alive)
+
+
 def set_position(board, p):
     board.send("set_position", x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
@@ -92,7 +94,6 @@ EDGE = {
 SLOWEST, QUICKEST = (27.0, 0.045, 9.0), (30.0, 0.0, 12.6)    # rocking amplitude (deg), servo lag (s), supply (V)
 # `make test` runs every set position on the slowest servos, and on the quickest the one
 # whose shafts come nearest a leg (0.40 mm, docs/verification.md); `make test-long` the
-# other three on the quickest
 # other three on the quickest; the XM430-W350 arm runs every set position on the slowest
 EDGE_RUNS = [(name, *SLOWEST, family) for family in FAMILIES for name in EDGE] + [
     (name, *QUICKEST, "AX-12A") if name == "beside a leg, reaching out" else
