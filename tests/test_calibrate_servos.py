@@ -16,6 +16,7 @@ import pytest
 import oracles
 from conftest import wait_simulated
 from test_calibrate import SECONDS, enabled_sitl, run_sitl
+from test_servo_models import xm430_text
 from test_xseries_board import xm430  # noqa: F401 (a fixture: the XM430-W350 build)
 from uavarm.calibrate import servo_zero
 from uavarm.calibrate.fit import CalibrationError
@@ -334,7 +335,7 @@ def xm430_lab(tmp_path, xm430):
     XM430-W350 arm, every zero at the centre, joint 2's servo stated as mounted the other way
     round (as it is), served by the XM430-W350 build."""
     model, ffi, lib = xm430
-    text = model.path.read_text()
+    text = xm430_text()                  # the same arm's model file, as a lab writes it
     joint2 = "[servo.theta2]\nid = 2\nzero = 2048\ndirection = 1"
     assert joint2 in text
     path = tmp_path / "manipulator.toml"

@@ -17,8 +17,7 @@ import arm_spec
 import oracles
 from conftest import ROOT
 from oracles import check_pose, servo_path
-from test_xseries_board import UNIT_RAD as XM430_UNIT_RAD, xm430_folder
-from uavarm.build import cbuild, firmware, generated
+from uavarm.build import cbuild, firmware, generated, variants
 from uavarm.model import collision, config, kinematics
 
 HARNESS = ROOT / "tests" / "csrc"
@@ -54,10 +53,10 @@ def harness():
 
 
 @pytest.fixture(scope="module")
-def xm430_harness(tmp_path_factory):
-    """(the oracle's numbers of an XM430-W350 model file, the harness built from it)."""
-    folder = xm430_folder(tmp_path_factory)
-    return arm_spec.spec(folder / "arm.toml"), harness_lib(folder / "generated")
+def xm430_harness():
+    """(the oracle's numbers of the model file made an XM430-W350 arm, the harness built from it)."""
+    _, gen_dir = variants.generate(variants.XM430_EDITS)
+    return arm_spec.spec(gen_dir.parent / "manipulator.toml"), harness_lib(gen_dir)
 
 
 def assert_safe(m, q, what):
@@ -216,6 +215,7 @@ def servo_moves_as_the_simulator_s(harness, simulator, speed_register, goal_rang
 
 
 AX12_UNIT_RAD = math.radians(arm_spec.AX12_RANGE_DEG) / arm_spec.AX12_UNITS_MAX   # AX-12A e-manual
+XM430_UNIT_RAD = 2 * math.pi / 4096   # XM430-W350 e-manual: 4096 units a turn
 
 
 def units_to_joints(m, units, unit_rad):

@@ -22,6 +22,7 @@ import pytest
 
 from conftest import once_per_run, require_arm_toolchain
 from sdk_capture import packet_handler, sdk_sync_write
+from simboard_tools import family_lib, family_servos
 from test_dxl_protocol2 import crc16
 from test_servo_models import xm430_text
 from uavarm.build import cbuild, firmware
@@ -52,17 +53,11 @@ ALERT = 0x80                      # status error byte bit 7
 
 
 @pytest.fixture(scope="module")
-def rig_parts(tmp_path_factory):
-    """(model, ffi, lib): the whole firmware application built for the host from an XM430-W350
-    model file (1 Mbit/s, zeros at 2048)."""
-    def make(folder):
-        (folder / "arm.toml").write_text(xm430_text())
-        assert generate.main(["--model", str(folder / "arm.toml"), "--out", str(folder / "generated")]) == 0
-        return str(folder)
-    folder = Path(once_per_run(tmp_path_factory, "xm430_firmware", make))
-    model = config.load(folder / "arm.toml")
-    ffi, lib = firmware.load(folder / "generated")
-    return model, ffi, lib
+def rig_parts():
+    """(model, ffi, lib): the whole firmware application built for the host from the model
+    file made an XM430-W350 arm (1 Mbit/s, zeros at 2048: uavarm/build/variants.py's
+    XM430_EDITS)."""
+    return (family_servos("XM430-W350").model, *family_lib("XM430-W350"))
 
 
 # ---------------------------------------------------------------- units from the model file

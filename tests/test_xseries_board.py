@@ -1,5 +1,5 @@
-"""An X-series arm on the simulated board: the firmware built from a model file with
-servo.model = "XM430-W350" runs against three simulated XM430-W350s (uavarm/sim/xseries_sim.py)
+"""An X-series arm on the simulated board: the firmware built from the model file made an arm of
+XM430-W350s (servo.model = "XM430-W350", uavarm/build/variants.py's XM430_EDITS) runs against three simulated XM430-W350s (uavarm/sim/xseries_sim.py)
 that SimBoard makes from the model file itself, as it makes AX-12As for the committed one.
 
 Oracles, none taken from the C under test: plain geometry (tests/oracles.py) on the simulated
@@ -11,51 +11,29 @@ packet reader, whose framing test_servo_bus2 checks against the SDK.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import oracles
-from conftest import once_per_run
-from simboard_tools import relaxed_model
-from test_servo_models import xm430_text
-from uavarm.build import firmware
-from uavarm.codegen import generate
+from simboard_tools import Servos, family_lib, family_servos
 from uavarm.link import messages
-from uavarm.model import config
 from uavarm.sim.board import SimBoard
 from uavarm.sim.xseries_sim import XM430_W350, XServo
 
-UNITS_PER_TURN = 4096             # XM430-W350 e-manual: Present Position, 0.088 deg a unit
-UNIT_RAD = 2 * math.pi / UNITS_PER_TURN
 KEEP_ALIVE = 0.25                 # s between the drone's frames
 
 
-def xm430_folder(tmp_path_factory) -> Path:
-    """A folder with an XM430-W350 model file (arm.toml) and its generated code (generated/),
-    made once per test run."""
-    def make(folder):
-        (folder / "arm.toml").write_text(xm430_text())
-        assert generate.main(["--model", str(folder / "arm.toml"), "--out", str(folder / "generated")]) == 0
-        return str(folder)
-    return Path(once_per_run(tmp_path_factory, "xm430_firmware", make))
-
-
 @pytest.fixture(scope="module")
-def xm430(tmp_path_factory):
-    """(model, ffi, lib): the firmware built for the host from an XM430-W350 model file."""
-    folder = xm430_folder(tmp_path_factory)
-    ffi, lib = firmware.load(folder / "generated")
-    return config.load(folder / "arm.toml"), ffi, lib
+def xm430():
+    """(model, ffi, lib): the firmware built for the host from the model file made an
+    XM430-W350 arm (uavarm/build/variants.py's XM430_EDITS)."""
+    return (family_servos("XM430-W350").model, *family_lib("XM430-W350"))
 
 
 def joints_of(model, units) -> np.ndarray:
-    """Joint angles (rad) of shaft positions (..., 3) in XM430 units."""
-    u = np.asarray(units, dtype=float)
-    zero = np.array([s.zero for s in model.servos], dtype=float)
-    sign = np.array([s.direction for s in model.servos], dtype=float)
-    return (u - zero) * sign * UNIT_RAD
+    """Joint angles (rad) of shaft positions (..., 3) in the model's servo units."""
+    return Servos(model).units_to_joints(units)
 
 
 def board_of(xm430, **kw) -> SimBoard:
@@ -80,7 +58,7 @@ def unsafe_shafts(board) -> list:
     """The traced shaft positions (supply on) that plain geometry refuses, with the servo rounding."""
     rows = np.array(board.shaft_trace, dtype=float)
     on = rows[rows[:, 1] > 0]
-    status, _ = oracles.check_pose(relaxed_model(board.model, UNIT_RAD), joints_of(board.model, on[:, 2:]))
+    status, _ = oracles.check_pose(Servos(board.model).relaxed, joints_of(board.model, on[:, 2:]))
     return on[status != 0].tolist()
 
 
@@ -109,7 +87,7 @@ def test_an_xm430_arm_engages_at_its_set_position_and_every_goal_and_shaft_is_sa
     assert np.linalg.norm(ee - set_point) < 0.3, (ee, set_point)   # 0.088 deg a unit at ~140 mm: 0.2 mm a joint
     goals = np.array([[c.goal[s.id] for s in model.servos] for c in board.commands])
     assert len(goals) > 100
-    status, _ = oracles.check_pose(relaxed_model(model, UNIT_RAD), joints_of(model, goals))
+    status, _ = oracles.check_pose(Servos(model).relaxed, joints_of(model, goals))
     assert (status == 0).all(), goals[status != 0][:3]
     assert not unsafe_shafts(board)
 
@@ -181,9 +159,10 @@ def test_an_xm430_that_browns_out_while_engaged_is_set_up_where_it_sagged_and_th
     sagged. That reading is not taken: the map is written again and the servo read again, so
     its reset is seen with its true position; it is set up again holding there, the heartbeat
     says servo_reset, the arm parks from where it is, every goal and every shaft position a
-    safe pose, no reading of position 0 taken; engage works again after."""
+    safe pose, no reading of position 0 taken; engage works again after. On the slowest
+    servos the tests allow for (45 ms of lag, 9.0 V sagging as they move)."""
     model = xm430[0]
-    board = board_of(xm430)
+    board = board_of(xm430, servo_lag=0.045, supply=9.0)
     board.send("enable", on=1)
     board.run(1.5)
     p = dict(x=60.0, y=20.0, z=-120.0)
@@ -215,7 +194,7 @@ def test_an_xm430_that_browns_out_while_engaged_is_set_up_where_it_sagged_and_th
     assert seen[0] == sagged and all(lo <= u <= hi for u in seen), seen[:5]     # never a position of 0
     assert servo.register("torque_enable") == 1 and servo.register("indirect_address_1") == 64
     goals = np.array([[c.goal[s.id] for s in model.servos] for c in board.commands[n:]])
-    status, _ = oracles.check_pose(relaxed_model(model, UNIT_RAD), joints_of(model, goals))
+    status, _ = oracles.check_pose(Servos(model).relaxed, joints_of(model, goals))
     assert len(goals) > 20 and (status == 0).all(), goals[status != 0][:3]
     keep(board, 4.0)
     board.send("engage", on=1)

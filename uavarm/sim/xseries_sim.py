@@ -486,8 +486,7 @@ class XServo:
         (its own address while at the initial value)."""
         if not INDIRECT_DATA <= addr < INDIRECT_DATA + INDIRECTS:
             return addr
-        target = self.register(f"indirect_address_{addr - INDIRECT_DATA + 1}")
-        return addr if target == addr else target
+        return self.register(f"indirect_address_{addr - INDIRECT_DATA + 1}")
 
     def _sync_read(self, params: bytes) -> Reply | None:
         if len(params) < 5:
