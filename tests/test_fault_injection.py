@@ -4,14 +4,19 @@ hardware would produce it (servo status bytes, the servo shafts, the MPU-6050's 
 the link's bytes, time), with tests/invariants.py's safety invariants checked after every
 step, the fault flagged in the heartbeat, and recovery once it clears.
 
-The servo-shaft faults (stuck, slowed, drifting, and sluggish but healthy) run on AX-12As and
-on XM430-W350s (simboard_tools.FAMILIES); the rest on AX-12As.
+The servo status-byte faults (error bytes, invalid and truncated status packets) and the
+servo-shaft faults (stuck, slowed, drifting, and sluggish but healthy) run on AX-12As and on
+XM430-W350s (simboard_tools.FAMILIES); the rest on AX-12As.
 
 Oracles, independent of the C under test: the AX-12A e-manual's error byte (bit 0 input
 voltage, 1 angle limit, 2 overheating, 3 range, 4 checksum, 5 overload, 6 instruction) and
-Protocol 1.0 status framing; the MPU-6050 register map (INT_STATUS DATA_RDY_INT, int16
-full scale); the LLCP format through the Python decoder (uavarm.link.llcp) fed the same bytes;
-plain geometry (tests/oracles.py) for poses; the arm's specification for the command semantics.
+Protocol 1.0 status framing; the Protocol 2.0 e-manual's status packet (FF FF FD 00 ID LEN_L
+LEN_H 55 ERR params CRC_L CRC_H) and error byte (bits 0-6 an error number: 1 result fail,
+2 instruction, 3 CRC, 4 data range, 5 data length, 6 data limit, 7 access; bit 7 the alert),
+its CRC-16 computed bit by bit from the polynomial (test_dxl_protocol2.with_crc); the
+MPU-6050 register map (INT_STATUS DATA_RDY_INT, int16 full scale); the LLCP format through
+the Python decoder (uavarm.link.llcp) fed the same bytes; plain geometry (tests/oracles.py)
+for poses; the arm's specification for the command semantics.
 """
 from __future__ import annotations
 
@@ -25,9 +30,10 @@ import pytest
 import oracles
 from invariants import Invariants
 from simboard_tools import (
-    FAMILIES, FAULT, FK_TOL_MM, IDS, MODEL, PARK_SPEED, TICK, WORKING_SPEED, BusLog, Servos, family_lib, family_servos,
-    make_board, ready, running, shaft_units, sync_goal_speed,
+    FAMILIES, FAULT, FK_TOL_MM, IDS, MODEL, PARK_SPEED, TICK, WORKING_SPEED, BusLog, Servos, family_board, family_lib,
+    family_servos, make_board, ready, running, shaft_units, sync_goal_speed,
 )
+from test_dxl_protocol2 import with_crc
 from uavarm.link import llcp, messages
 from uavarm.sim import ax12_sim, xseries_sim
 from uavarm.sim.board import SimBoard, baud_register
@@ -35,8 +41,11 @@ from uavarm.sim.board import SimBoard, baud_register
 TARGET = (70.0, -20.0, -95.0)
 OTHER = (40.0, 45.0, -120.0)
 SILENCE = MODEL.link_silence_timeout
-# AX-12A e-manual, status packet error byte
-ERROR_BITS = ["input_voltage", "angle_limit", "overheating", "range", "checksum", "overload", "instruction"]
+# AX-12A e-manual, status packet error byte: bits 0-6
+AX_ERROR_BITS = ["input_voltage", "angle_limit", "overheating", "range", "checksum", "overload", "instruction"]
+# Protocol 2.0 e-manual, status packet error byte: bits 0-6 an error number 1..7, bit 7 the alert
+X_ERROR_NUMBERS = ["result_fail", "instruction", "crc", "data_range", "data_length", "data_limit", "access"]
+X_ALERT = 0x80
 
 
 def set_position(board, p):
@@ -55,9 +64,9 @@ def parked(board, tol=1.0) -> bool:
     return all(abs(s - u) <= tol for s, u in zip(shaft_units(board), park))
 
 
-def engaged_board(p=TARGET, **kw):
-    """A board enabled, engaged at p and settled there; its Invariants."""
-    board = make_board(**kw)
+def engaged_board(p=TARGET, family="AX-12A", **kw):
+    """A board of `family`'s servos enabled, engaged at p and settled there; its Invariants."""
+    board = make_board(**kw) if family == "AX-12A" else family_board(family, **kw)
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
     assert inv.run_until(lambda: ready(board), 1.0) is not None
@@ -89,9 +98,10 @@ class ReplyTap:
         self.faults = {}
         bus = board.bus
         inner = bus._send_reply
+        id_at = 2 if Servos(board.model).protocol == 1 else 4     # FF FF ID ..., FF FF FD 00 ID ...
 
         def send(start, data):
-            f = self.faults.get(data[2])
+            f = self.faults.get(data[id_at])
             if f is not None:
                 data = f(bytes(data))
             if data:
@@ -108,24 +118,50 @@ def with_error(bit):
     return f
 
 
-@pytest.mark.parametrize("bit", range(7), ids=ERROR_BITS)
-def test_each_servo_error_bit_is_reported_and_clears(bit):
-    """A servo's status carries one error bit: the heartbeat shows exactly that bit for that
-    servo and servo_error; the arm keeps holding its target (the bit itself takes no action:
-    what the servo does about it, e.g. Shutdown, is the next test); clears with the bit."""
-    board, inv = engaged_board()
+def with_error2(error):
+    """The Protocol 2.0 status packet with error byte `error`, CRC recomputed (a servo that
+    reports it). The error byte follows the instruction 55 and is below FF, so it can neither
+    make nor break an FF FF FD: the byte stuffing stays as it was."""
+    def f(pkt):
+        return with_crc(pkt[:8] + bytes([error]) + pkt[9:-2])
+    return f
+
+
+def with_error_byte(family, error):
+    """The rewrite of a `family` servo's status packets that report `error` (an AX-12A's: one bit)."""
+    return with_error(error.bit_length() - 1) if family == "AX-12A" else with_error2(error)
+
+
+# Each error a servo reports: its family, its status error byte, and which of the driver's
+# error_bits counts it (an AX-12A's by bit, an X-series' by error number; None: none). An
+# X-series' alert (bit 7) is a valid error byte, unlike an AX-12A's bit 7 (next test): what
+# the servo does about it (its Shutdown, the torque off) is test_xseries_board's overheating test.
+ERROR_CASES = (
+    [pytest.param("AX-12A", 1 << bit, bit, id=f"AX-12A-{name}") for bit, name in enumerate(AX_ERROR_BITS)]
+    + [pytest.param("XM430-W350", number, number - 1, id=f"XM430-W350-{name}")
+       for number, name in enumerate(X_ERROR_NUMBERS, start=1)]
+    + [pytest.param("XM430-W350", X_ALERT, None, id="XM430-W350-alert")])
+
+
+@pytest.mark.parametrize("family, error, counted", ERROR_CASES)
+def test_each_servo_error_bit_is_reported_and_clears(family, error, counted):
+    """A servo's status carries one error (an AX-12A's bit, an X-series' error number or its
+    alert): the heartbeat shows exactly that error byte for that servo and servo_error; the
+    arm keeps holding its target (the error itself takes no action: what the servo does
+    about it, e.g. Shutdown, is the overheating tests'); clears with the error."""
+    board, inv = engaged_board(family=family)
     tap = ReplyTap(board)
     j = 1
-    tap.faults[IDS[j]] = with_error(bit)
+    tap.faults[IDS[j]] = with_error_byte(family, error)
     keep_alive(inv, TARGET, 0.6)
     hb = inv.next_heartbeat()
-    assert hb[f"servo{j + 1}_error"] == 1 << bit, hb
+    assert hb[f"servo{j + 1}_error"] == error, hb
     assert hb["servo1_error"] == hb["servo3_error"] == 0
     assert hb["faults"] & FAULT["servo_error"] and not hb["faults"] & FAULT["servo_timeout"], hb
     assert hb["engaged"] == 1 and at(board, TARGET)
     c = board.app.bus.servo[j]
-    assert c.error_bits[bit] == c.error_packets > 0
-    assert all(c.error_bits[b] == 0 for b in range(7) if b != bit)
+    assert c.error_packets > 0
+    assert list(c.error_bits) == [c.error_packets if k == counted else 0 for k in range(7)]
 
     del tap.faults[IDS[j]]
     set_position(board, TARGET)
@@ -148,12 +184,56 @@ def test_status_error_byte_with_bit_7_is_not_taken():
     inv.clear("servo_timeout", 1.0)
 
 
-@pytest.mark.parametrize("cut", [1, 4, 5, 9, 13])
-def test_truncated_status_packets_time_out_and_recover(cut):
-    """Servo 3's status packets (14 bytes: FF FF id len err 8 params chk) stop after `cut`
-    bytes: its reads time out (servo_timeout, counted), the other servos' reads and every
-    tick's command go on, and it recovers when whole packets come back."""
-    board, inv = engaged_board()
+def with_crc_off(pkt):
+    """The Protocol 2.0 status packet with one bit of its CRC flipped."""
+    return pkt[:-2] + bytes([pkt[-2] ^ 0x01]) + pkt[-1:]
+
+
+def not_a_status(pkt):
+    """The Protocol 2.0 status packet with 54 in place of the STATUS instruction 55, CRC recomputed."""
+    return with_crc(pkt[:7] + b"\x54" + pkt[8:-2])
+
+
+@pytest.mark.parametrize("rewrite, counted_bad", [(with_crc_off, True), (not_a_status, False)],
+                         ids=["crc_off", "not_status"])
+def test_x_status_packet_with_a_bad_crc_or_instruction_is_not_taken(rewrite, counted_bad):
+    """An XM430-W350's status packets arrive with a CRC that does not fit, or with an
+    instruction other than STATUS: no valid reply, so the read fails (timeout, retried; a bad
+    CRC is counted as a bad packet too) and nothing of it is taken, neither its error byte
+    nor its reading; the arm holds. With whole packets back, it reads the servo again."""
+    board, inv = engaged_board(family="XM430-W350")
+    tap = ReplyTap(board)
+    c = board.app.bus.servo[0]
+    tap.faults[IDS[0]] = rewrite
+    inv.flagged("servo_timeout", 1.2)
+    reads, timeouts, bad = c.reads, c.timeouts, c.bad_packets
+    keep_alive(inv, TARGET, 0.3)
+    hb = inv.next_heartbeat()
+    assert hb["faults"] & FAULT["servo_timeout"] and hb["servo1_error"] == 0 and c.error_packets == 0, hb
+    assert c.reads == reads and c.timeouts > timeouts
+    assert c.bad_packets - bad == (c.timeouts - timeouts if counted_bad else 0)
+    assert hb["engaged"] == 1 and at(board, TARGET)
+
+    del tap.faults[IDS[0]]
+    set_position(board, TARGET)
+    inv.clear("servo_timeout", 1.0)
+    assert c.reads > reads
+
+
+# Where each family's status reply is cut: the AX-12A's 14 bytes (FF FF id len err 8 params
+# chk) inside the header, after the length, after the error byte, inside the params, one byte
+# before the end; the XM430-W350's 27 (FF FF FD 00 id LEN_L LEN_H 55 err 16 params CRC_L
+# CRC_H) inside the header, inside the length, after the error byte, inside the params, one
+# byte before the end.
+CUTS = {"AX-12A": [1, 4, 5, 9, 13], "XM430-W350": [2, 6, 9, 17, 26]}
+
+
+@pytest.mark.parametrize("family, cut", [(family, cut) for family in FAMILIES for cut in CUTS[family]])
+def test_truncated_status_packets_time_out_and_recover(family, cut):
+    """Servo 3's status packets stop after `cut` bytes: its reads time out (servo_timeout,
+    counted), the other servos' reads and every tick's command go on, and it recovers when
+    whole packets come back."""
+    board, inv = engaged_board(family=family)
     tap = ReplyTap(board)
     tap.faults[IDS[2]] = lambda pkt: pkt[:cut]
     before = [board.app.bus.servo[j].timeouts for j in range(3)]

@@ -2,7 +2,10 @@
 arm is ready, a link whose own output comes back, a tick interrupt or clock that stops, an
 IMU whose clock runs off the tick's. Each is a fault a board meets in its first flights; each
 test drives it through the bytes and signals the hardware has and checks the reaction the
-fault table states, with tests/invariants.py watching every step.
+fault table states, with tests/invariants.py watching every step. Engage at every
+moment of start-up and engage with a servo silent run on AX-12As and on XM430-W350s
+(simboard_tools.FAMILIES); the rest on AX-12As (the X-series' brown-out and EEPROM tests are
+test_xseries_board.py's and test_servo_bus2.py's).
 
 Oracles: the AX-12A control table (Torque Enable at 24, RAM reset to its power-on values),
 the heartbeat's written layout, plain geometry, the rocking's own attitude (scipy).
@@ -17,8 +20,8 @@ from scipy.spatial.transform import Rotation
 
 from invariants import Invariants
 from simboard_tools import (
-    FAULT, IDS, IMU_SETTLE_S, MODEL, PARK_SPEED, TICK, BusLog, make_board, ready, run_until, running,
-    shaft_units, sync_goal_speed,
+    FAMILIES, FAULT, IDS, IMU_SETTLE_S, MODEL, PARK_SPEED, TICK, BusLog, family_board, make_board, ready, run_until,
+    running, shaft_units, sync_goal_speed,
 )
 from uavarm.link import messages
 from uavarm.sim.board import Rocking, SimBoard
@@ -109,14 +112,15 @@ def test_enable_writes_the_eeprom_only_where_it_differs():
 
 # ---------------------------------------------------------------- engage only when ready
 
-def test_engage_at_every_moment_of_start_up():
+@pytest.mark.parametrize("family", FAMILIES)
+def test_engage_at_every_moment_of_start_up(family):
     """engage sent 0 to 0.9 s after power-up and enable: refused while the servos boot and are
     configured (servos_starting) and while the IMU has not given the estimator one time
     constant of samples (imu_not_ready); taken once both hold, and then the arm goes from
     the park pose at the transit speed, never at the working speed from where it hung."""
     seen = set()
     for at in np.arange(0.0, 0.91, 0.05):
-        board = make_board(at=[512, 512, 512])
+        board = family_board(family, at=[0.0, 0.0, 0.0])      # hanging with every joint at its zero
         inv = Invariants(board, BusLog(board))
         board.send("enable", on=1)
         inv.run(at)
@@ -132,10 +136,11 @@ def test_engage_at_every_moment_of_start_up():
     assert seen == {"servos_starting", "imu_not_ready", "none"}
 
 
-def test_engage_with_a_servo_silent_is_refused_with_the_reason():
+@pytest.mark.parametrize("family", FAMILIES)
+def test_engage_with_a_servo_silent_is_refused_with_the_reason(family):
     """Servo 3 stops answering after configuration (servo_timeout stands): engage is refused
     (servo_fault) until it answers again."""
-    board = make_board()
+    board = family_board(family)
     inv = Invariants(board, BusLog(board))
     board.send("enable", on=1)
     assert inv.run_until(lambda: ready(board), 1.0) is not None
