@@ -118,11 +118,33 @@ def tilting_imu(m, n=N_TICKS):
     return raw
 
 
-def tick_bench_build(gen_dir=generated.GENERATED):
-    """bench/tick_bench.c with every application and generated source, for the M4 counter."""
+# How the firmware is built: as its Makefile links it (-O2, link-time optimisation: what the
+# target is for), each file compiled and linked on its own (whose cycles can be told by
+# function: link-time optimisation inlines most of the tick into app_poll), and as the
+# STM32CubeIDE project's Release configuration builds it (-Os, each file on its own).
+BUILDS = {"makefile": target.FIRMWARE_LTO, "per_file": [], "cubeide_release": ["-Os"]}
+
+
+def tick_bench_build(gen_dir=generated.GENERATED, build="makefile"):
+    """bench/tick_bench.c with every application and generated source, for the M4 counter,
+    built as BUILDS[build] says."""
     sources = [str(s) for s in firmware.app_sources(gen_dir)] + [str(BENCH / "tick_bench.c")]
     incs = [f"-I{d}" for d in (gen_dir, firmware.APP / "Inc")]
-    return m4.build(sources, ["bench_run", "bench_message", "bench_pass"], cflags=target.M4_CFLAGS + incs)
+    return m4.build(sources, ["bench_run", "bench_message", "bench_pass"],
+                    cflags=target.M4_CFLAGS + BUILDS[build] + incs)
+
+
+def tick_cycles(gen_dir, raw):
+    """({build: whole tick}, the per-file build's cycles by function), est. cycles per tick."""
+    tick = {}
+    for build in BUILDS:
+        idle, run = tick_runs(tick_bench_build(gen_dir, build), raw)
+        if not (idle.ret and run.ret):
+            raise SystemExit("tick bench: a run did not complete (engaged, all commands sent)")
+        tick[build] = (run.cycles - idle.cycles) / N_TICKS
+        if build == "per_file":
+            by_func = {k: (v - idle.cycles_by_function.get(k, 0)) / N_TICKS for k, v in run.cycles_by_function.items()}
+    return tick, by_func
 
 
 def whole_tick(m):
@@ -135,11 +157,12 @@ def whole_tick(m):
                                 m4.Arr("uint32", 3)], ret="int")
     if not (idle.ret and run.ret and base.ret):
         raise SystemExit("tick bench: a run did not complete (engaged, all commands sent)")
-    per_tick = lambda r: {k: v / N_TICKS for k, v in r.items()}
-    by_func = per_tick({k: v - idle.cycles_by_function.get(k, 0) for k, v in run.cycles_by_function.items()})
+    ticks, by_func = tick_cycles(generated.GENERATED, raw)
+    tick = ticks["makefile"]
+    # (told by function in the build without link-time optimisation: its calls cost more, so
+    # the ratio below is the smaller one)
     arithmetic = sum(v for k, v in by_func.items()
                      if k.startswith(("kin_", "est_", "filt_", "stab_", "fm_", "servo_joints_to_units", "mpu_sample")))
-    tick = (run.cycles - idle.cycles) / N_TICKS
     tick_insns = (run.insns - idle.insns) / N_TICKS
     ref_tick = base.cycles / N_TICKS
     print(f"\nWhole 100 Hz tick, mean over {N_TICKS} ticks of a board rocking +-20 deg. Firmware "
@@ -149,13 +172,17 @@ def whole_tick(m):
           "ref_tick): the same arithmetic written plainly with libm, no I/O.\n")
     print("| | insns | est. cycles | us at 96 MHz | stack bytes |")
     print("|---|---:|---:|---:|---:|")
-    print(f"| firmware: whole tick with bus I/O | {tick_insns:.0f} | {tick:.0f} | {tick / 96:.1f} | {run.stack_bytes} |")
-    print(f"| firmware: of which the arithmetic (generated code, stabiliser, IMU decoding and scaling) | | {arithmetic:.0f} | "
+    print(f"| firmware: whole tick with bus I/O, linked as the Makefile links it (link-time optimisation) | "
+          f"{tick_insns:.0f} | {tick:.0f} | {tick / 96:.1f} | {run.stack_bytes} |")
+    for build, what in (("per_file", "the same, each file compiled and linked on its own"),
+                        ("cubeide_release", "the same as STM32CubeIDE's Release configuration builds it (-Os)")):
+        print(f"| {what} | | {ticks[build]:.0f} | {ticks[build] / 96:.1f} | |")
+    print(f"| of which the arithmetic (generated code, stabiliser, IMU decoding and scaling) | | {arithmetic:.0f} | "
           f"{arithmetic / 96:.1f} | |")
     print(f"| plain reference tick: the arithmetic only, no I/O | {base.insns / N_TICKS:.0f} | {ref_tick:.0f} | "
           f"{ref_tick / 96:.1f} | {base.stack_bytes} |")
     print(f"| ratio reference / firmware arithmetic | | {ref_tick / arithmetic:.1f}x | | |")
-    print("\nLargest shares of the firmware tick (est. cycles, exclusive):",
+    print("\nLargest shares of the firmware tick, each file on its own (est. cycles, exclusive):",
           ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:14]))
     print(f"\nWith the gyro's cross-axis sensitivity calibrated (imu.gyro_cross_axis not zero: a 3x3 product "
           f"per sample instead of three scales): whole tick {cross_axis_tick(raw):.0f} est. cycles.")
@@ -269,13 +296,12 @@ def xseries_tick():
     from uavarm.build import variants
     m = config.load()
     raw = tilting_imu(m, N_TICKS + 1)
-    idle, run = tick_runs(tick_bench_build(variants.build(variants.XM430_EDITS).gen_dir), raw)
-    if not (idle.ret and run.ret):
-        raise SystemExit("tick bench: the XM430-W350 run did not complete (engaged, all commands sent)")
-    by_func = {k: (v - idle.cycles_by_function.get(k, 0)) / N_TICKS for k, v in run.cycles_by_function.items()}
+    ticks, by_func = tick_cycles(variants.build(variants.XM430_EDITS).gen_dir, raw)
     print(f"\nWhole tick of the same arm on XM430-W350 servos (bench/tick_bench.c, as above): "
-          f"{(run.cycles - idle.cycles) / N_TICKS:.0f} est. cycles; largest shares: "
-          + ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:8]) + ".")
+          f"{ticks['makefile']:.0f} est. cycles as the Makefile links it, {ticks['per_file']:.0f} with each file "
+          f"on its own, {ticks['cubeide_release']:.0f} as CubeIDE's Release builds it (-Os); largest shares, each "
+          "file on its own: " + ", ".join(f"{k} {v:.0f}" for k, v in sorted(by_func.items(), key=lambda kv: -kv[1])[:8])
+          + ".")
 
 
 if __name__ == "__main__":

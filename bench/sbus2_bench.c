@@ -2,7 +2,7 @@
  * The X-series servo-bus driver's work per command on Cortex-M4 (firmware_stm32/App/Src/
  * servo_bus2.c, Dynamixel Protocol 2.0), for `make bench`: the bus running, n commands, each
  * sbus_command(), the SYNC_WRITE of Profile Velocity and Goal Position built and sent, the
- * status READ sent, and its reply (the status map's 16 bytes, 27 in all) parsed and
+ * status READ sent, and its reply (the status map's 13 bytes, 24 in all) parsed and
  * taken, in four sbus_poll() passes. The port is a minimal in-memory bus whose servos answer
  * each READ at once with a status packet built beforehand (composing it is the servo's work).
  *

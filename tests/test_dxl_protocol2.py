@@ -184,6 +184,23 @@ def test_crc_matches_the_polynomial_and_the_sdk(data, start):
     assert lib.dxl2_crc(start, data, len(data)) == PH.updateCRC(start, list(data), len(data))
 
 
+@SETTINGS
+@given(data=st.binary(min_size=1, max_size=40), start=u16, changed=st.data())
+def test_a_crc_summed_from_the_changing_bytes_shares_is_the_sdks(data, start, changed):
+    """The CRC of a packet whose changing bytes are set to 0, XOR each such byte's share
+    (dxl2_crc_shares: by its value and how many bytes follow it), is the SDK's CRC of the
+    packet: how the firmware's SYNC_WRITE and status readings get their CRCs."""
+    ffi, lib = dxl2()
+    at = changed.draw(st.sets(st.integers(0, len(data) - 1), min_size=1))
+    zeroed = bytes(0 if k in at else b for k, b in enumerate(data))
+    crc = PH.updateCRC(start, list(zeroed), len(zeroed))
+    share = ffi.new("uint16_t[256]")
+    for k in at:
+        lib.dxl2_crc_shares(share, len(data) - 1 - k)
+        crc ^= share[data[k]]
+    assert crc == PH.updateCRC(start, list(data), len(data))
+
+
 # ------------------------------------------------- builders vs the SDK
 
 @SETTINGS

@@ -222,10 +222,10 @@ def test_x_status_packet_with_a_bad_crc_or_instruction_is_not_taken(rewrite, cou
 
 # Where each family's status reply is cut: the AX-12A's 14 bytes (FF FF id len err 8 params
 # chk) inside the header, after the length, after the error byte, inside the params, one byte
-# before the end; the XM430-W350's 27 (FF FF FD 00 id LEN_L LEN_H 55 err 16 params CRC_L
+# before the end; the XM430-W350's 24 (FF FF FD 00 id LEN_L LEN_H 55 err 13 params CRC_L
 # CRC_H) inside the header, inside the length, after the error byte, inside the params, one
 # byte before the end.
-CUTS = {"AX-12A": [1, 4, 5, 9, 13], "XM430-W350": [2, 6, 9, 17, 26]}
+CUTS = {"AX-12A": [1, 4, 5, 9, 13], "XM430-W350": [2, 6, 9, 15, 23]}
 
 
 @pytest.mark.parametrize("family, cut", [(family, cut) for family in FAMILIES for cut in CUTS[family]])
@@ -235,7 +235,10 @@ def test_truncated_status_packets_time_out_and_recover(family, cut):
     whole packets come back."""
     board, inv = engaged_board(family=family)
     tap = ReplyTap(board)
-    tap.faults[IDS[2]] = lambda pkt: pkt[:cut]
+    def truncated(pkt):
+        assert len(pkt) > cut, "a cut inside the packet"
+        return pkt[:cut]
+    tap.faults[IDS[2]] = truncated
     before = [board.app.bus.servo[j].timeouts for j in range(3)]
     keep_alive(inv, TARGET, 0.4)
     hb = inv.next_heartbeat()

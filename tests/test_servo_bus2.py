@@ -221,7 +221,7 @@ def test_power_up_configures_every_servo_and_runs(rig_parts):
         for read in (group[0], group[-2]):
             addr, n = int.from_bytes(read[2][:2], "little"), int.from_bytes(read[2][2:4], "little")
             assert addr <= 9 and addr + n >= 147, "the reads cover every register written and the status"
-        assert group[-1][2] == bytes([INDIRECT_DATA, 0, 16, 0]), "the status through its map"
+        assert group[-1][2] == bytes([INDIRECT_DATA, 0, 13, 0]), "the status through its map"
         s = rig.servo(j)
         want = wanted(model, j)
         assert {k: s.register(k) for k in want} == want
@@ -319,7 +319,7 @@ def test_each_command_one_sync_write_and_one_status_read_and_the_goals_are_reach
     for pkts in by_tick.values():
         assert [p[1] for p in pkts] == [INST_SYNC_WRITE, INST_READ], [p[3].hex(" ") for p in pkts]
         sync, read = pkts
-        assert sync[0] == BROADCAST and read[2] == bytes([INDIRECT_DATA, 0, 16, 0]), "the status map's 16 bytes"
+        assert sync[0] == BROADCAST and read[2] == bytes([INDIRECT_DATA, 0, 13, 0]), "the status map's 13 bytes"
         read_ids.append(read[0])
     k = rig.ids.index(read_ids[0])
     assert read_ids == [rig.ids[(k + n) % 3] for n in range(len(read_ids))], "round robin"
@@ -400,16 +400,19 @@ def table_bytes(*names):
 
 
 def test_the_status_map_points_at_the_registers_read_and_reads_them(rig_parts):
-    """Indirect Address 1..16 hold the addresses of Torque Enable, Status Return Level, Hardware
-    Error Status, Present Current, Velocity, Position, Input Voltage and Temperature; what the
-    driver makes of a reading through them is what those registers hold (the servos at
-    different supplies, temperatures, loads and speeds)."""
+    """Indirect Address 1..13 hold the addresses of Torque Enable, Status Return Level, Hardware
+    Error Status, Present Current, the low two bytes of Present Velocity (it stays within
+    +-Velocity Limit, at most 1023), Present Position, the low byte of Present Input Voltage
+    (at most 160, the servos' 16 V) and Present Temperature; what the driver makes of a reading
+    through them is what those registers hold (the servos at different supplies,
+    temperatures, loads and speeds)."""
     rig = running_rig(rig_parts)
     model = rig.model
-    order = table_bytes("torque_enable", "status_return_level", "hardware_error_status", "present_current",
-                        "present_velocity", "present_position", "present_input_voltage", "present_temperature")
+    order = table_bytes("torque_enable", "status_return_level", "hardware_error_status", "present_current")
+    order += table_bytes("present_velocity")[:2] + table_bytes("present_position")
+    order += table_bytes("present_input_voltage")[:1] + table_bytes("present_temperature")
     for j in range(3):
-        assert [rig.servo(j).register(f"indirect_address_{k + 1}") for k in range(16)] == order
+        assert [rig.servo(j).register(f"indirect_address_{k + 1}") for k in range(13)] == order
         rig.servo(j).voltage = 11.3 + 0.2 * j
         rig.servo(j).temperature = 41 + j
         rig.servo(j).load_torque = (-0.4, 0.25, 1.1)[j]

@@ -550,8 +550,15 @@ def test_command_line_build_links_elf_bin_hex(tmp_path):
     elf, binary, hexfile = (build / f"manipulator.{ext}" for ext in ("elf", "bin", "hex"))
     assert elf.exists() and binary.exists() and hexfile.exists()
     symbols = subprocess.run(["arm-none-eabi-nm", str(elf)], capture_output=True, text=True, check=True).stdout
-    for name in ("main", "app_init", "app_poll", "board_port_start", "kin_ik_nearest", "Reset_Handler"):
+    for name in ("main", "Reset_Handler"):
         assert re.search(rf" [TW] {name}$", symbols, re.M), name
+    # the application, the board port and the generated code linked in: their compile units in
+    # the debug information (link-time optimisation inlines app_init and the like, leaving no
+    # symbol of their own)
+    info = subprocess.run(["arm-none-eabi-readelf", "--debug-dump=info", str(elf)], capture_output=True, text=True,
+                          check=True).stdout
+    units = set(re.findall(r"DW_TAG_compile_unit\)\n(?:.*\n)*?.*DW_AT_name\s*:.*?(\S+)\n", info))
+    assert {"App/Src/app.c", "Board/Src/board_port.c", "../generated/kinematics.c"} <= units, sorted(units)
     table = struct.unpack(f"<{st_startup.VECTORS}I", binary.read_bytes()[:4 * st_startup.VECTORS])
     stack, reset = table[:2]
     assert stack == 0x2000_0000 + 128 * 1024                 # _estack: top of the 128 KB SRAM

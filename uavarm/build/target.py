@@ -9,6 +9,9 @@ from . import cbuild
 
 # uavarm.m4.build adds -O2 and the CPU/FPU flags itself; these are the project's own.
 M4_CFLAGS = [f for f in cbuild.COMMON_FLAGS if not f.startswith("-O")]
+# The firmware's Makefile links its own sources with link-time optimisation: a build of the
+# whole firmware (the bench's tick) adds this.
+FIRMWARE_LTO = ["-flto=auto"]
 
 
 def reference_defines(m) -> list[str]:

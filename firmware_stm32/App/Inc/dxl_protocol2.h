@@ -102,6 +102,12 @@ typedef struct {
 /* CRC-16 (polynomial 0x8005) of n bytes, continuing from crc (0 to start). */
 uint16_t dxl2_crc(uint16_t crc, const uint8_t *bytes, size_t n);
 
+/* The CRC is linear (no final XOR): a packet's CRC is the CRC of it with some bytes 0, XOR
+ * each such byte's share, which depends only on the byte and on how many bytes follow it
+ * up to the CRC. share[b] for a byte b with `after` bytes after it. So a packet whose changing
+ * bytes stand at fixed places gets its CRC by one lookup for each of them. */
+void dxl2_crc_shares(uint16_t share[256], unsigned after);
+
 /* id 0..252 or broadcast (every servo answers, one after the other) */
 size_t dxl2_build_ping(uint8_t *buf, size_t cap, uint8_t id);
 /* id 0..252 and 1 <= len <= DXL2_MAX_READ */

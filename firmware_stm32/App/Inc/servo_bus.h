@@ -44,11 +44,14 @@
  *   Level 1, the status map (below), Goal PWM (the torque cap), Profile Acceleration 0 (no ramp)
  *   with Profile Velocity at the park speed, and Torque Enable 1 (0: sbus_power_limp); then reads
  *   it all back, and reads the status once through the map (where the arm is).
- * - The status map: Indirect Address 1..16 point at Torque Enable, Status Return Level, Hardware
- *   Error Status, Present Current (or Load), Velocity, Position, Input Voltage and Temperature,
- *   so one READ of Indirect Data 1..16 (224..239) gets them in 16 bytes instead of the 83 of
- *   Torque Enable .. Present Temperature (the reply's CRC and stuffing scan are the tick's
- *   largest costs on this bus). The map is RAM: a servo that lost its power reads it back at
+ * - The status map: Indirect Address 1..13 point at Torque Enable, Status Return Level, Hardware
+ *   Error Status, Present Current (or Load), the low two bytes of Present Velocity (it stays
+ *   within +-Velocity Limit, 1023), Present Position, the low byte of Present Input Voltage
+ *   (the servos' supply limit is 16 V, 160) and Present Temperature, so one READ of Indirect
+ *   Data 1..13 (224..236) gets them in 13 bytes instead of the 83 of Torque Enable .. Present
+ *   Temperature (the reply's CRC and stuffing scan are the tick's largest costs on this bus;
+ *   the CRCs of the tick's packets are summed from each changing byte's share, one lookup a
+ *   byte: dxl2_crc_shares). The map is RAM: a servo that lost its power reads it back at
  *   its initial values, every byte 0. A servo that answers a READ has Status Return Level 1 or
  *   2, so a reading with 0 there is not the servo's state: nothing of it is taken, the map is
  *   written again (remaps) and the servo read again at once; a servo that still reads so after
@@ -66,7 +69,7 @@
  *   each of its bits counted per reading in hardware_error_bits. present_speed and
  *   present_load keep the AX-12A's form (magnitude up to 1023, bit 10 for the negative
  *   direction); present_current is the register as read (XM430 Present Current in 2.69 mA,
- *   XL430 Present Load in 0.1 %); present_voltage is capped at 25.5 V.
+ *   XL430 Present Load in 0.1 %); present_voltage is Present Input Voltage's low byte.
  * - The torque cap is Goal PWM (torque_limit holds it): PWM Limit (885, the factory's) in
  *   full, servo.bench_torque_limit of it on the bench (sbus_power_limp), in the configuration
  *   and in every refit; PWM Limit is written with the safety registers.
@@ -95,16 +98,16 @@ extern "C" {
 #define SBUS_VERIFY_LEN 39         /* and the first status reading (where the arm is) */
 #define SBUS_TX_MAX 48            /* the configuration's longest WRITE: the status map, 44 bytes */
 #define SBUS_RX_MAX 48
-#define SBUS2_STATUS_ADDR 224      /* Protocol 2.0: Indirect Data 1..16, the status map */
-#define SBUS2_STATUS_LEN 16
+#define SBUS2_STATUS_ADDR 224      /* Protocol 2.0: Indirect Data 1..13, the status map */
+#define SBUS2_STATUS_LEN 13
 #define SBUS2_AT_TORQUE_ENABLE 0   /* where each register stands in a status reading */
 #define SBUS2_AT_STATUS_RETURN_LEVEL 1   /* (0 in a reply: the map was lost with the RAM) */
 #define SBUS2_AT_HARDWARE_ERROR 2
 #define SBUS2_AT_CURRENT 3         /* Present Current (XM430) or Present Load (XL430) */
-#define SBUS2_AT_VELOCITY 5
-#define SBUS2_AT_POSITION 9
-#define SBUS2_AT_VOLTAGE 13
-#define SBUS2_AT_TEMPERATURE 15
+#define SBUS2_AT_VELOCITY 5        /* its low 2 bytes: within +-Velocity Limit (at most 1023) */
+#define SBUS2_AT_POSITION 7
+#define SBUS2_AT_VOLTAGE 11        /* its low byte: the servos' supply limit is 16 V (160) */
+#define SBUS2_AT_TEMPERATURE 12
 #define SBUS2_VERIFY_ADDR 9        /* Return Delay Time .. Present Temperature */
 #define SBUS2_VERIFY_LEN 138
 #define SBUS2_SYNC_MAX 41          /* its SYNC_WRITE (never stuffed: servo_bus2.c) */
@@ -204,14 +207,14 @@ typedef struct {
     uint8_t sync2_pkt[SBUS2_SYNC_MAX];  /* the SYNC_WRITE of Profile Velocity and Goal Position (head
                                            and IDs built once at init, the values per command) */
     uint8_t sync2_len;                  /* its length, 0 if the ids cannot be sent */
-    uint16_t sync2_crc0;                /* the CRC of its bytes before the first ID */
+    uint16_t sync2_crc0;                /* its CRC with every value 0 */
     uint8_t read2_pkt[SBUS_SERVOS][SBUS2_READ_LEN];   /* each servo's status READ, built once at init */
     uint8_t read2_len[SBUS_SERVOS];     /* its length, 0 if the id cannot be sent */
     uint8_t reply2_head[SBUS_SERVOS][8];   /* the first 8 bytes of each servo's status reply, */
-    uint16_t reply2_crc8[SBUS_SERVOS];     /* and their CRC (built at init) */
+    uint16_t reply2_crc0[SBUS_SERVOS];     /* and the CRC of the reply with every byte after them 0 */
     const uint8_t *expect2_head;        /* the same of the reply awaited: a status reading's, */
     uint8_t other2_head[8];             /* or another's */
-    uint16_t expect2_crc8;
+    uint16_t expect2_crc;               /* a status reading's reply2_crc0, another's head's CRC */
     uint8_t direct2[DXL2_STATUS_MIN_LEN + SBUS2_VERIFY_LEN];   /* the expected reply so far */
     uint8_t rx2_buf[SBUS2_RX_MAX];
     dxl2_parser_t parser2;

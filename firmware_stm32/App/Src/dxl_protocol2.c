@@ -102,6 +102,17 @@ uint16_t dxl2_crc(uint16_t crc, const uint8_t *bytes, size_t n)
     return (uint16_t)c;
 }
 
+void dxl2_crc_shares(uint16_t share[256], unsigned after)
+{
+    for (unsigned b = 0; b < 256u; ++b) {
+        uint32_t c = crc_table[b];             /* the CRC of b alone, from 0 */
+        for (unsigned k = 0; k < after; ++k) {
+            c = ((c << 8) ^ crc_table[c >> 8]) & 0xFFFFu;   /* then a zero byte */
+        }
+        share[b] = (uint16_t)c;
+    }
+}
+
 /* ---------------------------------------------------------------- builders */
 
 /* A packet being written; ok drops to 0 when it no longer fits in cap. */

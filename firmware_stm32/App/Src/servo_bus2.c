@@ -45,16 +45,16 @@ typedef char x_table_layout[(MODEL_DXL_OPERATING_MODE == X_RETURN_DELAY + 2u
 #define BYTES4(a) (a), (a) + 1u, (a) + 2u, (a) + 3u
 static const uint16_t STATUS_MAP[SBUS2_STATUS_LEN] = {
     X_TORQUE_ENABLE, X_STATUS_RETURN_LEVEL, X_HARDWARE_ERROR, BYTES2(MODEL_DXL_PRESENT_LOAD),
-    BYTES4(MODEL_DXL_PRESENT_SPEED), BYTES4(MODEL_DXL_PRESENT_POSITION), BYTES2(MODEL_DXL_PRESENT_VOLTAGE),
+    BYTES2(MODEL_DXL_PRESENT_SPEED), BYTES4(MODEL_DXL_PRESENT_POSITION), MODEL_DXL_PRESENT_VOLTAGE,
     MODEL_DXL_PRESENT_TEMPERATURE
 };
 typedef char status_map_order[(SBUS2_AT_STATUS_RETURN_LEVEL == SBUS2_AT_TORQUE_ENABLE + 1
                                && SBUS2_AT_HARDWARE_ERROR == SBUS2_AT_STATUS_RETURN_LEVEL + 1
                                && SBUS2_AT_CURRENT == SBUS2_AT_HARDWARE_ERROR + 1
                                && SBUS2_AT_VELOCITY == SBUS2_AT_CURRENT + 2
-                               && SBUS2_AT_POSITION == SBUS2_AT_VELOCITY + 4
+                               && SBUS2_AT_POSITION == SBUS2_AT_VELOCITY + 2
                                && SBUS2_AT_VOLTAGE == SBUS2_AT_POSITION + 4
-                               && SBUS2_AT_TEMPERATURE == SBUS2_AT_VOLTAGE + 2
+                               && SBUS2_AT_TEMPERATURE == SBUS2_AT_VOLTAGE + 1
                                && SBUS2_STATUS_LEN == SBUS2_AT_TEMPERATURE + 1
                                && SBUS2_STATUS_LEN <= 28) ? 1 : -1];   /* (Indirect Address 1..28) */
 
@@ -97,6 +97,32 @@ typedef char packet_sizes[(READ_LEN == SBUS2_READ_LEN && SYNC_LEN == SBUS2_SYNC_
  * no FF FF (let alone FF FF FD) can stand anywhere from its instruction on. */
 typedef char sync_write_never_stuffed[(MODEL_DXL_POSITION_MAX < 0xFF00u && MODEL_DXL_SPEED_MAX < 0xFF00u
                                        && X_PROFILE_VELOCITY < 0xFF00u) ? 1 : -1];
+#define READING_CRC_BYTES (1u + SBUS2_STATUS_LEN)   /* a status reading's error byte and parameters */
+#define READING_LEN (DXL2_STATUS_MIN_LEN + SBUS2_STATUS_LEN)
+
+/* The CRC's share of each byte that changes from packet to packet (dxl2_crc_shares): of the
+ * SYNC_WRITE's speeds and goals their two low bytes (the two high ones are 0), of a status
+ * reading its error byte and parameters. One lookup a byte: a tick's CRCs cost a third of
+ * what they cost byte by byte. The same for every bus: filled by the first sbus_init. */
+static uint16_t sync_shares[SBUS_SERVOS][4][256];
+static uint16_t reading_shares[READING_CRC_BYTES][256];
+static bool shares_filled;
+
+static void fill_shares(void)
+{
+    if (shares_filled) return;
+    const unsigned values = (1u + SYNC_ENTRY_LEN) * SBUS_SERVOS;   /* the bytes from the first ID to the CRC */
+    static const uint8_t at[4] = { 1u, 2u, 5u, 6u };   /* in an entry: ID, speed's 4 bytes, goal's 4 */
+    for (unsigned i = 0; i < SBUS_SERVOS; ++i) {
+        for (unsigned k = 0; k < 4u; ++k) {
+            dxl2_crc_shares(sync_shares[i][k], values - 1u - ((1u + SYNC_ENTRY_LEN) * i + at[k]));
+        }
+    }
+    for (unsigned k = 0; k < READING_CRC_BYTES; ++k) {
+        dxl2_crc_shares(reading_shares[k], READING_CRC_BYTES - 1u - k);
+    }
+    shares_filled = true;
+}
 
 enum { CFG_READ, CFG_WRITE, CFG_VERIFY, CFG_STATUS };   /* configuration steps of each servo */
 /* its writes, in order (bits of sbus_t.cfg_mask): the torque off if the EEPROM must be
@@ -151,31 +177,34 @@ static uint16_t get16(const uint8_t *p)
 }
 
 /* The first 8 bytes of servo id's status packet with n_params parameters: FF FF FD 00 ID
- * LEN_L LEN_H 55 (then the error byte); the CRC of them into crc8. */
-static void status_head(uint8_t head[8], uint16_t *crc8, uint8_t id, unsigned n_params)
+ * LEN_L LEN_H 55 (then the error byte); the CRC of them. */
+static uint16_t status_head(uint8_t head[8], uint8_t id, unsigned n_params)
 {
     const unsigned len = n_params + 4u;   /* instruction, error, parameters, CRC */
     const uint8_t h[8] = { 0xFFu, 0xFFu, 0xFDu, 0x00u, id, (uint8_t)(len & 0xFFu), (uint8_t)(len >> 8), DXL2_INST_STATUS };
     memcpy(head, h, sizeof h);
-    *crc8 = dxl2_crc(0, h, sizeof h);
+    return dxl2_crc(0, h, sizeof h);
 }
 
 void sbus_init(sbus_t *bus, const port_t *port, const uint8_t ids[SBUS_SERVOS], uint32_t baud)
 {
     memset(bus, 0, sizeof *bus);
+    fill_shares();
     bus->port = port;
     bus->byte_us = (10u * 1000000u + baud - 1u) / baud;   /* start + 8 data + stop bits */
     for (int i = 0; i < SBUS_SERVOS; ++i) {
         bus->servo[i].id = ids[i];
         bus->read2_len[i] = (uint8_t)dxl2_build_read(bus->read2_pkt[i], sizeof bus->read2_pkt[i], ids[i],
                                                      SBUS2_STATUS_ADDR, SBUS2_STATUS_LEN);
-        status_head(bus->reply2_head[i], &bus->reply2_crc8[i], ids[i], SBUS2_STATUS_LEN);
+        static const uint8_t zero_reading[READING_CRC_BYTES];
+        bus->reply2_crc0[i] = dxl2_crc(status_head(bus->reply2_head[i], ids[i], SBUS2_STATUS_LEN), zero_reading,
+                                       sizeof zero_reading);
     }
     /* the SYNC_WRITE with every value 0: its head and IDs stay, the values and CRC change */
     static const uint8_t zeros[SBUS_SERVOS * SYNC_ENTRY_LEN];
     bus->sync2_len = (uint8_t)dxl2_build_sync_write(bus->sync2_pkt, sizeof bus->sync2_pkt, X_PROFILE_VELOCITY,
                                                     SYNC_ENTRY_LEN, SBUS_SERVOS, ids, zeros);
-    bus->sync2_crc0 = dxl2_crc(0, bus->sync2_pkt, SYNC_HEAD);
+    bus->sync2_crc0 = get16(bus->sync2_pkt + SYNC_LEN - 2u);
     (void)dxl2_parser_init(&bus->parser2, bus->rx2_buf, sizeof bus->rx2_buf);
     enter(bus, SBUS_OFF);
 }
@@ -267,7 +296,7 @@ static bool send(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply)
 }
 
 /* Sends the len bytes at pkt to servo s, whose status packet has n_params parameters. */
-static bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, sbus_servo_t *s, uint8_t n_params)
+static inline __attribute__((always_inline)) bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, sbus_servo_t *s, uint8_t n_params)
 {
     if (!send(bus, pkt, len, reply)) return false;
     bus->expect_servo = s;
@@ -276,9 +305,9 @@ static bool request(sbus_t *bus, const uint8_t *pkt, size_t len, uint8_t reply, 
     const unsigned i = (unsigned)(s - bus->servo);
     if (n_params == SBUS2_STATUS_LEN) {   /* a status reading's: built at init */
         bus->expect2_head = bus->reply2_head[i];
-        bus->expect2_crc8 = bus->reply2_crc8[i];
+        bus->expect2_crc = bus->reply2_crc0[i];
     } else {
-        status_head(bus->other2_head, &bus->expect2_crc8, s->id, n_params);
+        bus->expect2_crc = status_head(bus->other2_head, s->id, n_params);
         bus->expect2_head = bus->other2_head;
     }
     /* a reply may take the longest return delay plus its own bytes, counted from the
@@ -328,15 +357,22 @@ static bool head_fits(const sbus_t *bus, unsigned n)
 }
 
 /* Does an FF FF FD stand in d[first - 2 .. end - 1] with its FD at first or later? An FD is
- * rare: four bytes at a time are looked at for one before any is looked at closely. */
-static bool has_ff_ff_fd(const uint8_t *d, unsigned first, unsigned end)
+ * rare: four bytes at a time are looked at for one (a word with a zero byte where an FD
+ * was) before any byte is looked at closely. */
+static inline __attribute__((always_inline)) bool has_ff_ff_fd(const uint8_t *d, unsigned first, unsigned end)
 {
+    uint32_t fd_bytes = 0;
     unsigned k = first;
     for (; k + 4u <= end; k += 4u) {
-        const uint32_t w = get32(d + k) ^ 0xFDFDFDFDu;   /* a zero byte where an FD was */
-        if (((w - 0x01010101u) & ~w & 0x80808080u) != 0u) break;
+        const uint32_t w = get32(d + k) ^ 0xFDFDFDFDu;
+        fd_bytes |= (w - 0x01010101u) & ~w;
     }
-    for (; k < end; ++k) {
+    if (k < end && end >= first + 4u) {   /* the last bytes: a word overlapping the one before */
+        const uint32_t w = get32(d + end - 4u) ^ 0xFDFDFDFDu;
+        fd_bytes |= (w - 0x01010101u) & ~w;
+        k = end;
+    }
+    for (k = (fd_bytes & 0x80808080u) != 0u ? first : k; k < end; ++k) {
         if (d[k] == 0xFDu && d[k - 1u] == 0xFFu && d[k - 2u] == 0xFFu) return true;
     }
     return false;
@@ -348,8 +384,15 @@ static bool has_ff_ff_fd(const uint8_t *d, unsigned first, unsigned end)
 static bool whole_fits(const sbus_t *bus, unsigned total)
 {
     const uint8_t *d = bus->direct2;
-    if (dxl2_crc(bus->expect2_crc8, d + 8, total - 10u) != get16(d + total - 2u)) return false;
-    return !has_ff_ff_fd(d, 9u, total - 2u);
+    if (bus->expect2_head == bus->other2_head) {
+        return dxl2_crc(bus->expect2_crc, d + 8, total - 10u) == get16(d + total - 2u) && !has_ff_ff_fd(d, 9u, total - 2u);
+    }
+    /* a status reading, of a length known here: the loops unrolled (a CRC lookup is then 4
+     * instructions) */
+    uint32_t crc = bus->expect2_crc;
+#pragma GCC unroll 17
+    for (unsigned k = 0; k < READING_CRC_BYTES; ++k) crc ^= reading_shares[k][d[8u + k]];
+    return crc == get16(d + READING_LEN - 2u) && !has_ff_ff_fd(d, 9u, READING_LEN - 2u);
 }
 
 /* The len bytes received for the request, which do not fit the expected reply, through the
@@ -366,7 +409,7 @@ static bool resync_direct(sbus_t *bus, unsigned len)
 /* What arrived of the expected reply, read straight into bus->direct2; true when it completed
  * it. At the first byte that does not fit, everything received for the request goes to the
  * parser instead. (The parser costs hundreds of cycles a byte: the usual reply needs none.) */
-static bool receive_direct(sbus_t *bus)
+static inline __attribute__((always_inline)) bool receive_direct(sbus_t *bus)
 {
     const unsigned total = DXL2_STATUS_MIN_LEN + bus->expect_params;
     size_t n;
@@ -397,7 +440,7 @@ static bool receive_resync(sbus_t *bus)
 }
 
 /* The reply so far, or the timeout. */
-static int receive(sbus_t *bus)
+static inline __attribute__((always_inline)) int receive(sbus_t *bus)
 {
     if ((!bus->resync && receive_direct(bus)) || (bus->resync && receive_resync(bus))) {
         bus->phase = PHASE_IDLE;
@@ -411,7 +454,7 @@ static int receive(sbus_t *bus)
 }
 
 /* Advances the transaction on the wire: has it ended, and how? */
-static int transaction(sbus_t *bus)
+static inline __attribute__((always_inline)) int transaction(sbus_t *bus)
 {
     if (bus->phase == PHASE_SENDING) {
         if (bus->port->servo_busy(bus->port->ctx)) return NOT_DONE;
@@ -427,7 +470,7 @@ static int transaction(sbus_t *bus)
 }
 
 /* Drops whatever arrived since the last request (late replies, noise). */
-static void flush_rx(sbus_t *bus)
+static inline __attribute__((always_inline)) void flush_rx(sbus_t *bus)
 {
     uint8_t chunk[16];
     while (bus->port->servo_read(bus->port->ctx, chunk, sizeof chunk) > 0) {
@@ -508,7 +551,7 @@ static uint16_t writes_needed(const sbus_t *bus, unsigned i)
     return mask;
 }
 
-static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p);
+static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p);
 
 /* Is a status reading the servo's state? A servo that answers a READ has Status Return Level
  * 1 or 2: 0 there is its status map back at the initial values (the RAM lost with the power),
@@ -595,16 +638,15 @@ static uint16_t ax_style(int32_t v)
  * with no hardware error: the servo lost its RAM (a supply dip resets it, torque off) and
  * goes limp; it is set up again at once (refit). (A hardware error turns the torque off
  * too: that servo stays off until rebooted, reported by its error byte's alert bit.) */
-static void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
+static inline __attribute__((always_inline)) void take_status(sbus_t *bus, sbus_servo_t *s, const uint8_t *p)
 {
     const int32_t position = (int32_t)get32(p + SBUS2_AT_POSITION);
-    const uint16_t volts = get16(p + SBUS2_AT_VOLTAGE);
     s->present_position = (uint16_t)(position < 0 ? 0u : position > (int32_t)MODEL_DXL_POSITION_MAX
                                       ? MODEL_DXL_POSITION_MAX : (uint32_t)position);
-    s->present_speed = ax_style((int32_t)get32(p + SBUS2_AT_VELOCITY));
+    s->present_speed = ax_style((int16_t)get16(p + SBUS2_AT_VELOCITY));
     s->present_current = (int16_t)get16(p + SBUS2_AT_CURRENT);
     s->present_load = ax_style(s->present_current);
-    s->present_voltage = (uint8_t)(volts > 255u ? 255u : volts);
+    s->present_voltage = p[SBUS2_AT_VOLTAGE];
     s->present_temperature = p[SBUS2_AT_TEMPERATURE];
     s->hardware_error = p[SBUS2_AT_HARDWARE_ERROR];
     for (unsigned bits = s->hardware_error; bits != 0u; bits &= bits - 1u) {
@@ -656,12 +698,15 @@ static size_t build_refit(sbus_t *bus)
 static size_t sync_fill(sbus_t *bus)
 {
     uint8_t *entry = bus->sync2_pkt + SYNC_HEAD;   /* ID, Profile Velocity, Goal Position */
+    uint16_t crc = bus->sync2_crc0;
     for (int i = 0; i < SBUS_SERVOS; ++i, entry += 1u + SYNC_ENTRY_LEN) {
-        if (bus->goal[i] > MODEL_DXL_POSITION_MAX || bus->speed[i] > MODEL_DXL_SPEED_MAX) return 0;
-        put32(entry + 1, bus->speed[i]);
-        put32(entry + 5, bus->goal[i]);
+        const unsigned speed = bus->speed[i], goal = bus->goal[i];
+        if (goal > MODEL_DXL_POSITION_MAX || speed > MODEL_DXL_SPEED_MAX) return 0;
+        put32(entry + 1, speed);
+        put32(entry + 5, goal);
+        const uint16_t (*share)[256] = sync_shares[i];
+        crc ^= share[0][speed & 0xFFu] ^ share[1][speed >> 8] ^ share[2][goal & 0xFFu] ^ share[3][goal >> 8];
     }
-    const uint16_t crc = dxl2_crc(bus->sync2_crc0, bus->sync2_pkt + SYNC_HEAD, SYNC_LEN - SYNC_HEAD - 2u);
     bus->sync2_pkt[SYNC_LEN - 2u] = (uint8_t)crc;
     bus->sync2_pkt[SYNC_LEN - 1u] = (uint8_t)(crc >> 8);
     return bus->sync2_len;
