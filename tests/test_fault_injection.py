@@ -220,6 +220,31 @@ def test_x_status_packet_with_a_bad_crc_or_instruction_is_not_taken(rewrite, cou
     assert c.reads > reads
 
 
+@pytest.mark.parametrize("number", [4, 7], ids=["data_range", "access"])
+def test_x_servo_refusing_its_status_read_shows_why(number):
+    """An XM430-W350 answers its status READ with an error number and no parameters (the
+    e-manual's answer to an instruction it refuses): nothing is read, so the read fails as an
+    unanswered one does (servo_timeout, retried), and the heartbeat shows the error number for
+    that servo (servo_error); both clear once it answers again."""
+    board, inv = engaged_board(family="XM430-W350")
+    tap = ReplyTap(board)
+    c = board.app.bus.servo[1]
+    tap.faults[IDS[1]] = lambda pkt: with_crc(pkt[:5] + bytes([4, 0, 0x55, number]))   # LEN 4: 55, error, CRC
+    inv.flagged("servo_timeout", 1.2)
+    reads, timeouts = c.reads, c.timeouts
+    keep_alive(inv, TARGET, 0.3)
+    hb = inv.next_heartbeat()
+    assert hb["servo2_error"] == number and hb["faults"] & FAULT["servo_error"], hb
+    assert c.reads == reads and c.timeouts > timeouts and c.error_bits[number - 1] > 0
+    assert hb["engaged"] == 1 and at(board, TARGET)
+
+    del tap.faults[IDS[1]]
+    set_position(board, TARGET)
+    inv.clear("servo_timeout", 1.0)
+    hb = inv.clear("servo_error", 1.0)
+    assert hb["servo2_error"] == 0 and c.reads > reads
+
+
 # Where each family's status reply is cut: the AX-12A's 14 bytes (FF FF id len err 8 params
 # chk) inside the header, after the length, after the error byte, inside the params, one byte
 # before the end; the XM430-W350's 24 (FF FF FD 00 id LEN_L LEN_H 55 err 13 params CRC_L

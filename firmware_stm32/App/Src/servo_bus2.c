@@ -340,6 +340,12 @@ static bool parse_byte(sbus_t *bus, uint8_t byte)
             bus->reply_params = bus->parser2.params;
             return true;
         }
+        if (bus->parser2.id == bus->expect_id && bus->parser2.n_params == 0u && (bus->parser2.error & 0x7Fu) != 0u) {
+            /* the servo refused the request, its error number without parameters: shown, and
+             * the request fails as if unanswered */
+            note_error_byte(s, bus->parser2.error);
+            return false;
+        }
         bus->stray_packets++;   /* a packet meant for no request (the parser skips our own echo) */
     }
     return false;
