@@ -394,9 +394,9 @@ static bool whole_fits(const sbus_t *bus, unsigned total)
         return dxl2_crc(bus->expect2_crc, d + 8, total - 10u) == get16(d + total - 2u) && !has_ff_ff_fd(d, 9u, total - 2u);
     }
     /* a status reading, of a length known here: the loops unrolled (a CRC lookup is then 4
-     * instructions) */
+     * instructions; 32 is more than READING_CRC_BYTES can be, at most 1 + 28) */
     uint32_t crc = bus->expect2_crc;
-#pragma GCC unroll 17
+#pragma GCC unroll 32
     for (unsigned k = 0; k < READING_CRC_BYTES; ++k) crc ^= reading_shares[k][d[8u + k]];
     return crc == get16(d + READING_LEN - 2u) && !has_ff_ff_fd(d, 9u, READING_LEN - 2u);
 }
