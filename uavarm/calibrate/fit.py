@@ -213,9 +213,13 @@ def mounting_from_gravity(up_imu: np.ndarray) -> tuple[float, float]:
 
 
 # Servo lag fit: the grid of dead times and time constants searched (s), and what a usable
-# record must show.
+# record must show. The bounds on the shaft's motion are angles, each servo's readings held to
+# them in its own units: a shaft that follows reads within about an AX-12A's unit (0.29 deg)
+# of the model, and the same motion read in an XM430-W350's finer units (0.088 deg) misfits by
+# 3.4 times as many of them (most of it the ramp's corners, cut by readings 30 ms apart).
 LAG_GRID_S = np.arange(0.0, 0.1205, 0.0005)
-LAG_FIT_RMS_MAX_UNITS = 1.5        # a following shaft reads within about a unit of the model
+LAG_FIT_RMS_MAX_DEG = 0.44         # 1.5 AX-12A units
+LAG_TRAVEL_MIN_DEG = 2.9           # under 10 AX-12A units: the goal hardly moved
 LAG_FOLLOWED_SHARE = 0.7           # of the goal's travel the shaft must have followed
 LAG_TAIL_S = 0.15                  # readings used after the goal stops
 
@@ -257,17 +261,19 @@ def _moving_part(t, goal, pos, joint: int):
     return t[part], goal[part], pos[part]
 
 
-def fit_servo_lag(records: list[tuple[np.ndarray, np.ndarray, np.ndarray]], joint: int) -> ServoLag:
+def fit_servo_lag(records: list[tuple[np.ndarray, np.ndarray, np.ndarray]], joint: int,
+                  deg_per_unit: float) -> ServoLag:
     """Dead time and time constant of one servo from records of (time s, goal, position)
-    (units), each a jog from rest with readings from before it; CalibrationError if the
-    shaft did not follow or the fit is poor."""
+    (units of deg_per_unit, the servo's own), each a jog from rest with readings from before
+    it; CalibrationError if the shaft did not follow or the fit is poor."""
+    rms_max = LAG_FIT_RMS_MAX_DEG / deg_per_unit
     dt = 0.0005
     sse = np.zeros((len(LAG_GRID_S), len(LAG_GRID_S)))     # [dead, tau]
     count = 0
     for record in records:
         t, goal, pos = _moving_part(*record, joint)
         travel, followed = np.ptp(goal), np.ptp(pos)
-        if travel < 10 or followed < LAG_FOLLOWED_SHARE * travel:
+        if travel < LAG_TRAVEL_MIN_DEG / deg_per_unit or followed < LAG_FOLLOWED_SHARE * travel:
             raise CalibrationError(f"joint {joint}'s servo moved {followed:.0f} of the {travel:.0f} units its goal "
                                    "did: is it blocked, limp or unpowered?")
         grid = np.arange(t[0] - LAG_GRID_S[-1], t[-1] + dt, dt)
@@ -280,9 +286,9 @@ def fit_servo_lag(records: list[tuple[np.ndarray, np.ndarray, np.ndarray]], join
     i, j = np.unravel_index(np.argmin(sse), sse.shape)
     rms = float(np.sqrt(sse[i, j] / count))
     fit = ServoLag(float(LAG_GRID_S[i]), float(LAG_GRID_S[j]), rms)
-    if rms > LAG_FIT_RMS_MAX_UNITS:
+    if rms > rms_max:
         raise CalibrationError(f"joint {joint}'s servo does not follow its goal like a lag (fit rms {rms:.1f} units, "
-                               f"at most {LAG_FIT_RMS_MAX_UNITS}): was the arm touched or loaded during the jogs?")
+                               f"at most {rms_max:.1f}): was the arm touched or loaded during the jogs?")
     if LAG_GRID_S[-1] in (fit.dead, fit.tau):
         raise CalibrationError(f"joint {joint}'s servo lags more than {LAG_GRID_S[-1] * 1000:.0f} ms: too slow to "
                                "stabilise anything (supply voltage? compliance settings?)")

@@ -210,7 +210,7 @@ def mounting(arm, model_path: Path, ask, confirm, seconds: float = 3.0, uncalibr
 
 # Servo lag: each joint jogged this far toward the middle of its travel and back, at the park
 # speed; the readings taken for this long after each jog's command.
-LAG_JOG_RAD = 0.25                 # 14 deg: about 50 units, a ramp of a quarter second
+LAG_JOG_RAD = 0.25                 # 14 deg (49 AX-12A units, 163 XM430-W350 ones): a ramp of a quarter second
 LAG_SETTLE_S = 0.4
 
 
@@ -249,7 +249,7 @@ def lag(arm, model_path: Path, ask, confirm, seconds: float = LAG_SETTLE_S, allo
                 middle = np.radians((limit.min_deg + limit.max_deg) / 2)
                 out = q[j - 1] + (LAG_JOG_RAD if middle >= q[j - 1] else -LAG_JOG_RAD)
                 records = [_jog_record(arm, j, out, seconds), _jog_record(arm, j, q[j - 1], seconds)]
-                f = fit.fit_servo_lag(records, j)
+                f = fit.fit_servo_lag(records, j, float(model.servo_model.deg_per_unit))
                 print(f"joint {j}: {f.lag * 1000:.1f} ms behind the jog's goal (fit rms {f.rms_units:.2f} units "
                       f"over {sum(len(r[0]) for r in records)} readings)")
                 fits.append(f)
