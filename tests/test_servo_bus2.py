@@ -48,6 +48,21 @@ TABLE = {"return_delay_time": (9, 1), "drive_mode": (10, 1), "operating_mode": (
          "goal_position": (116, 4), "present_current": (126, 2), "present_velocity": (128, 4),
          "present_position": (132, 4), "present_input_voltage": (144, 2), "present_temperature": (146, 1)}
 INDIRECT_ADDRESS, INDIRECT_DATA = 168, 224   # Indirect Address 1 (2 bytes each), Indirect Data 1
+
+
+def table_bytes(*names):
+    """Each byte's address of the named registers (the e-manual's table), in order."""
+    return [a for n in names for a in range(TABLE[n][0], TABLE[n][0] + TABLE[n][1])]
+
+
+# What the status map must point at: Torque Enable, Status Return Level, Hardware Error Status,
+# Present Current, the low two bytes of Present Velocity (it stays within +-Velocity Limit, at
+# most 1023), Present Position, the low byte of Present Input Voltage (at most 160, the
+# servos' 16 V) and Present Temperature; a status READ asks for as many Indirect Data bytes.
+STATUS_MAP = (table_bytes("torque_enable", "status_return_level", "hardware_error_status", "present_current")
+              + table_bytes("present_velocity")[:2] + table_bytes("present_position")
+              + table_bytes("present_input_voltage")[:1] + table_bytes("present_temperature"))
+STATUS_READ = bytes([INDIRECT_DATA, 0, len(STATUS_MAP), 0])   # a READ's address and length
 OVERHEATING = 0x04                # Hardware Error Status bit 2
 ALERT = 0x80                      # status error byte bit 7
 
@@ -221,7 +236,7 @@ def test_power_up_configures_every_servo_and_runs(rig_parts):
         for read in (group[0], group[-2]):
             addr, n = int.from_bytes(read[2][:2], "little"), int.from_bytes(read[2][2:4], "little")
             assert addr <= 9 and addr + n >= 147, "the reads cover every register written and the status"
-        assert group[-1][2] == bytes([INDIRECT_DATA, 0, 13, 0]), "the status through its map"
+        assert group[-1][2] == STATUS_READ, "the status through its map"
         s = rig.servo(j)
         want = wanted(model, j)
         assert {k: s.register(k) for k in want} == want
@@ -319,7 +334,7 @@ def test_each_command_one_sync_write_and_one_status_read_and_the_goals_are_reach
     for pkts in by_tick.values():
         assert [p[1] for p in pkts] == [INST_SYNC_WRITE, INST_READ], [p[3].hex(" ") for p in pkts]
         sync, read = pkts
-        assert sync[0] == BROADCAST and read[2] == bytes([INDIRECT_DATA, 0, 13, 0]), "the status map's 13 bytes"
+        assert sync[0] == BROADCAST and read[2] == STATUS_READ, "the status map's bytes"
         read_ids.append(read[0])
     k = rig.ids.index(read_ids[0])
     assert read_ids == [rig.ids[(k + n) % 3] for n in range(len(read_ids))], "round robin"
@@ -394,25 +409,14 @@ def test_bus_time_per_command_is_bounded(rig_parts):
     assert worst * 1e6 <= bound < US / model.sample_rate
 
 
-def table_bytes(*names):
-    """Each byte's address of the named registers (the e-manual's table), in order."""
-    return [a for n in names for a in range(TABLE[n][0], TABLE[n][0] + TABLE[n][1])]
-
-
 def test_the_status_map_points_at_the_registers_read_and_reads_them(rig_parts):
-    """Indirect Address 1..13 hold the addresses of Torque Enable, Status Return Level, Hardware
-    Error Status, Present Current, the low two bytes of Present Velocity (it stays within
-    +-Velocity Limit, at most 1023), Present Position, the low byte of Present Input Voltage
-    (at most 160, the servos' 16 V) and Present Temperature; what the driver makes of a reading
-    through them is what those registers hold (the servos at different supplies,
+    """Indirect Address 1..13 hold the addresses of STATUS_MAP; what the driver makes of a
+    reading through them is what those registers hold (the servos at different supplies,
     temperatures, loads and speeds)."""
     rig = running_rig(rig_parts)
     model = rig.model
-    order = table_bytes("torque_enable", "status_return_level", "hardware_error_status", "present_current")
-    order += table_bytes("present_velocity")[:2] + table_bytes("present_position")
-    order += table_bytes("present_input_voltage")[:1] + table_bytes("present_temperature")
     for j in range(3):
-        assert [rig.servo(j).register(f"indirect_address_{k + 1}") for k in range(13)] == order
+        assert [rig.servo(j).register(f"indirect_address_{k + 1}") for k in range(len(STATUS_MAP))] == STATUS_MAP
         rig.servo(j).voltage = 11.3 + 0.2 * j
         rig.servo(j).temperature = 41 + j
         rig.servo(j).load_torque = (-0.4, 0.25, 1.1)[j]
@@ -598,19 +602,21 @@ def test_a_reply_with_an_fd_is_taken_but_not_one_with_an_unstuffed_ff_ff_fd(rig_
     assert c.present_position == 253 and c.present_speed == 253 and c.bad_packets == 0
     send_reply = rig.bus._send_reply
     planted = []
+    places = len(STATUS_MAP) - 2    # FF FF FD wholly within the parameters, after the error byte
 
     def plant(start, data):
         k = len(planted)
-        if data[4] == rig.ids[0] and data[7] == 0x55 and k < 14:
+        if data[4] == rig.ids[0] and data[7] == 0x55 and k < places:
             body = bytearray(data[:-2])
             body[9 + k:12 + k] = b"\xff\xff\xfd"
+            assert len(body) == 9 + len(STATUS_MAP)
             data = bytes(body) + crc16(bytes(body)).to_bytes(2, "little")
             planted.append(data)
         return send_reply(start, data)
 
     rig.bus._send_reply = plant
     reads = c.reads
-    assert rig.run_until(lambda: len(planted) == 14, 1.0)
+    assert rig.run_until(lambda: len(planted) == places, 1.0)
     rig.run(0.01)
     assert c.reads == reads and c.present_position == 253, "no planted reply taken"
     rig.run(0.1)

@@ -83,6 +83,10 @@ typedef char status_map_order[(SBUS2_AT_STATUS_RETURN_LEVEL == SBUS2_AT_TORQUE_E
 #define GOAL_PWM_BENCH ((PWM_LIMIT * MODEL_SERVO_BENCH_TORQUE_LIMIT + 511u) / 1023u)
 /* Velocity Limit: Profile Velocity above it is refused, so it is the model's top speed */
 #define VELOCITY_LIMIT MODEL_DXL_SPEED_MAX
+/* The status map reads Present Velocity's low two bytes and Present Input Voltage's low one:
+ * enough while the velocity stays within Velocity Limit and the supply within the servo's
+ * voltage limit. */
+typedef char status_map_widths[(VELOCITY_LIMIT <= 32767u && SAFE_VOLTAGE_HIGH <= 255u) ? 1 : -1];
 /* The longest a servo may wait before answering: Return Delay Time 254 x 2 us. */
 #define RETURN_DELAY_MAX_US 508u
 #define REPLY_MARGIN_US 1000u
@@ -390,7 +394,7 @@ static inline __attribute__((always_inline)) bool has_ff_ff_fd(const uint8_t *d,
 static bool whole_fits(const sbus_t *bus, unsigned total)
 {
     const uint8_t *d = bus->direct2;
-    if (bus->expect2_head == bus->other2_head) {
+    if (bus->expect_params != SBUS2_STATUS_LEN) {   /* not a status reading (request) */
         return dxl2_crc(bus->expect2_crc, d + 8, total - 10u) == get16(d + total - 2u) && !has_ff_ff_fd(d, 9u, total - 2u);
     }
     /* a status reading, of a length known here: the loops unrolled (a CRC lookup is then 4
