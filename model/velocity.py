@@ -64,6 +64,16 @@ learnt, as the arm at rest is levelled on the accelerometer as it reads, bias an
 With the flight controller's error e_f and the bias's tilt e_b (the velocity's alone) the
 disagreement closes at k_f + k_d per second, leaving the tilt error (k_f e_b + k_d e_f) /
 (k_f + k_d): the two errors weighed by the gains (equal gains: their mean).
+
+But the flight controller's error comes and goes (a correlation time of tens of seconds) and
+the bias stays, so fc_error also fades at 1 / fc_error_tau (tau) while it learns:
+
+    fc_error <- fc_error + h (k_f err - fc_error / tau)
+
+A disagreement that changes within tau is still weighed by the gains; one that outlasts it
+ends as the bias: the tilt error moves from the weighed one to e_f (to the truth when the
+flight controller is right) at k_d / ((k_f + k_d) tau) per second (1 / (45 s) for the
+committed 0.4, 0.2 and 30 s). With tau = 0 nothing fades.
 """
 from __future__ import annotations
 

@@ -2,6 +2,8 @@
 always draws the same errors, and a drawn scenario is one the scenario files could state."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from uavarm.sim import error_ranges, scenarios
@@ -30,3 +32,18 @@ def test_a_drawn_scenario_is_one_a_scenario_file_can_state():
     for seed in range(20):
         s = error_ranges.drawn(scenarios.load("manoeuvre"), seed)
         assert scenarios.parse(scenarios.dump(s)) == s
+
+
+def test_an_error_left_out_is_zero_and_the_rest_drawn_as_before():
+    """Leaving the flight controller's slow error out zeroes it alone: the same seed's other
+    errors (its white error, rate, delays; the velocity's) are drawn unchanged."""
+    base = scenarios.load("hover")
+    full = error_ranges.drawn(base, 7)
+    for name, (stream, fields) in error_ranges.LEFT_OUT.items():
+        cut = error_ranges.drawn(base, 7, without=(name,))
+        before, after = getattr(full, stream), getattr(cut, stream)
+        for f in dataclasses.fields(before):
+            assert getattr(after, f.name) == (0.0 if f.name in fields else getattr(before, f.name)), (name, f.name)
+        assert getattr(before, fields[0]) > 0.0
+        other = "velocity" if stream == "link" else "link"
+        assert getattr(cut, other) == getattr(full, other)

@@ -44,7 +44,7 @@ LINK_ONLY = ("estimator.link_gain", "estimator.link_bias_gain")
 STREAMS_ONLY = ("estimator.link_delay_min", "estimator.link_delay_max", "estimator.link_timeout")
 VELOCITY_ONLY = ("estimator.velocity_bandwidth", "estimator.accel_bias_bandwidth", "estimator.accel_bias_max_g")
 LINK_AND_VELOCITY_ONLY = ("estimator.link_gain_with_velocity", "estimator.link_bias_gain_with_velocity",
-                          "estimator.fc_error_gain", "estimator.fc_error_max_deg",
+                          "estimator.fc_error_gain", "estimator.fc_error_max_deg", "estimator.fc_error_tau",
                           "estimator.accel_bias_attitude_gain")
 
 

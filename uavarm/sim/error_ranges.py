@@ -30,16 +30,26 @@ VELOCITY = {"rate_hz": (30.0, 100.0), "delay_ms": (15.0, 25.0), "jitter_ms": (0.
             "noise_mps": (0.03, 0.1), "slow_mps": (0.03, 0.1), "slow_tau_s": (10.0, 60.0)}
 
 
-def drawn(scenario: scenarios.Scenario, seed: int, imu_profile: str | None = None) -> scenarios.Scenario:
+# Errors a draw can leave out (`make sim-report --without`), to find which one sets a figure:
+# their sizes set to 0, everything else drawn as before.
+LEFT_OUT = {"attitude-slow": ("link", ("slow_deg",)), "attitude-white": ("link", ("noise_deg",)),
+            "velocity-slow": ("velocity", ("slow_mps",)), "velocity-white": ("velocity", ("noise_mps",))}
+
+
+def drawn(scenario: scenarios.Scenario, seed: int, imu_profile: str | None = None,
+          without: tuple[str, ...] = ()) -> scenarios.Scenario:
     """The scenario with this seed's draw of the drone's errors, and the IMU's profile of ranges
-    (or the one given)."""
+    (or the one given); the errors named in `without` (LEFT_OUT) zero."""
     rng = np.random.default_rng([seed, 5])
 
     def params(cls, ranges):
         return cls(**{name: float(rng.uniform(lo, hi)) for name, (lo, hi) in ranges.items()})
-    link = dataclasses.replace(params(scenarios.LinkParams, LINK), bias_deg=0.0)
-    velocity = params(scenarios.VelocityParams, VELOCITY)
-    return dataclasses.replace(scenario, imu_profile=imu_profile or IMU_PROFILE, link=link, velocity=velocity)
+    streams = {"link": dataclasses.replace(params(scenarios.LinkParams, LINK), bias_deg=0.0),
+               "velocity": params(scenarios.VelocityParams, VELOCITY)}
+    for name in without:
+        stream, fields = LEFT_OUT[name]
+        streams[stream] = dataclasses.replace(streams[stream], **{f: 0.0 for f in fields})
+    return dataclasses.replace(scenario, imu_profile=imu_profile or IMU_PROFILE, **streams)
 
 
 def describe(scenario: scenarios.Scenario, imu: imu_model.ImuDraw | None) -> str:

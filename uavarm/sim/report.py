@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..build import generated, variants
-from . import ax12_sim, closed_loop, error_ranges, scenarios
+from . import ax12_sim, closed_loop, error_ranges, imu_model, scenarios
 
 REPORT_SCENARIOS = ("bench", "hover", "manoeuvre")
 REPORT_ESTIMATORS = ("quaternion", "link", "imu-velocity", "link-velocity")
@@ -218,22 +218,32 @@ def main(argv=None) -> int:
                     help="seeds per scenario and estimator, each drawing its own errors (default: %(default)s)")
     ap.add_argument("--fixed-errors", action="store_true",
                     help="every seed with the scenario's own stated errors instead of draws across the ranges")
+    ap.add_argument("--imu", choices=sorted(imu_model.PROFILES), default=None,
+                    help="the draws' IMU error profile instead of the ranges' (e.g. calibrated: the accelerometer's "
+                         "bias a fresh calibration leaves)")
+    ap.add_argument("--without", action="append", default=[], choices=sorted(error_ranges.LEFT_OUT),
+                    help="an error of the drone's data left out of the draws (0), to see what it costs (repeatable)")
     ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--supply", type=float, default=None, metavar="VOLTS",
                     help="the simulated servos' battery, open circuit (default: ax12_sim.Supply's)")
     args = ap.parse_args(argv)
+    if args.without and args.fixed_errors:
+        print("error: --without leaves an error out of the draws; with --fixed-errors there are none", file=sys.stderr)
+        return 2
     settings = replace(closed_loop.Settings(), seconds=args.seconds, supply=args.supply)
     try:
         changes = build_variants(args.estimators, args.sets)
         loaded = {name: scenarios.load(name) for name in args.scenarios}
+        if args.imu and args.fixed_errors:
+            loaded = {name: replace(sc, imu_profile=args.imu) for name, sc in loaded.items()}
         servo_lag = closed_loop.servo_lag_of(settings, variants.build({}).model)
     except (variants.VariantError, scenarios.ScenarioError, generated.StaleCode) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
 
     def scenario_of(name, seed):
-        return loaded[name] if args.fixed_errors else error_ranges.drawn(loaded[name], seed)
+        return loaded[name] if args.fixed_errors else error_ranges.drawn(loaded[name], seed, args.imu, tuple(args.without))
     jobs = [(scenario_of(s, seed), changes[e], e, seed, settings)
             for s in args.scenarios for e in args.estimators for seed in range(args.draws)]
     t0 = time.monotonic()
@@ -257,6 +267,8 @@ def main(argv=None) -> int:
         print(line)
     args.out.mkdir(parents=True, exist_ok=True)
     errors = ("each seed's errors drawn across the ranges (" + error_ranges.ranges_text() + ")"
+              + (f", but the IMU's from its `{args.imu}` profile (uavarm/sim/imu_model.py)" if args.imu else "")
+              + "".join(f", without the {name.replace('-', ' ')} error" for name in args.without)
               if not args.fixed_errors else
               "each scenario's own stated errors, IMU profile " + ", ".join(f"{n}: {sc.imu_profile}"
                                                                           for n, sc in loaded.items()))

@@ -410,13 +410,15 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
          * error or, split, also the accelerometer's bias across up (velocity.py): fc_error
          * moves towards the estimate at fc_error_gain and, split, the estimate towards the
          * flight controller at accel_bias_attitude_gain, with the bias that holds it there (the
-         * velocity keeps agreeing); per second of the drone's time. Split, only in flight: the
-         * arm at rest is levelled on the accelerometer as it reads, bias and all, which would
-         * leave the whole disagreement to fc_error. */
+         * velocity keeps agreeing); per second of the drone's time. Split, the learnt fc_error
+         * also fades at 1 / fc_error_tau, the flight controller's error being one that comes
+         * and goes: a disagreement that outlasts it ends as the bias. Split, only in flight:
+         * the arm at rest is levelled on the accelerometer as it reads, bias and all, which
+         * would leave the whole disagreement to fc_error. */
         const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
         float learn[3], turn[3], across[3];
         for (int i = 0; i < 3; ++i) {
-            learn[i] = h * MODEL_FC_ERROR_GAIN * err[i];
+            learn[i] = h * (MODEL_FC_ERROR_GAIN * err[i] - (SPLIT ? MODEL_FC_ERROR_FADE : 0.0f) * s->fc_error[i]);
             turn[i] = h * MODEL_ACCEL_BIAS_ATTITUDE_GAIN * err[i];
         }
         move_fc_error(s, learn);
