@@ -512,8 +512,7 @@ def test_when_the_velocity_stops_the_learnt_error_keeps_the_estimate(unfaded, no
     velocity stops: its attitude corrects at the full link_gain again, less fc_error, so the
     estimate stays within 0.05 deg of where the two agreed (not split: the truth; split, its
     learnt error not fading: the share k_d / (k_d + k_f) of the way to the flight controller,
-    above) instead of jumping to
-    the 0.94 deg error."""
+    above) instead of jumping to the 0.94 deg error."""
     err = np.radians([0.8, -0.5])
     run = Run(unfaded if split else not_split, Flight(still, at_rest)).run(60.0, attitude_error=err)
     agreed = run.errors[-1]

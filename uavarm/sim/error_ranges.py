@@ -30,8 +30,8 @@ VELOCITY = {"rate_hz": (30.0, 100.0), "delay_ms": (15.0, 25.0), "jitter_ms": (0.
             "noise_mps": (0.03, 0.1), "slow_mps": (0.03, 0.1), "slow_tau_s": (10.0, 60.0)}
 
 
-# Errors a draw can leave out (`make sim-report --without`), to find which one sets a figure:
-# their sizes set to 0, everything else drawn as before.
+# Errors a draw can leave out (`python -m uavarm.sim.report --without`), to find which one
+# sets a figure: their sizes set to 0, everything else drawn as before.
 LEFT_OUT = {"attitude-slow": ("link", ("slow_deg",)), "attitude-white": ("link", ("noise_deg",)),
             "velocity-slow": ("velocity", ("slow_mps",)), "velocity-white": ("velocity", ("noise_mps",))}
 

@@ -243,7 +243,9 @@ def main(argv=None) -> int:
         return 2
 
     def scenario_of(name, seed):
-        return loaded[name] if args.fixed_errors else error_ranges.drawn(loaded[name], seed, args.imu, tuple(args.without))
+        if args.fixed_errors:
+            return loaded[name]
+        return error_ranges.drawn(loaded[name], seed, args.imu, tuple(args.without))
     jobs = [(scenario_of(s, seed), changes[e], e, seed, settings)
             for s in args.scenarios for e in args.estimators for seed in range(args.draws)]
     t0 = time.monotonic()
