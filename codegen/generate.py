@@ -466,6 +466,11 @@ def estimator_params(m: config.Model):
         "fc_error_fade": float32_literal(sp.Integer(0) if e.fc_error_tau == 0
                                          else 1 / sp.nsimplify(e.fc_error_tau, rational=True)),
         "accel_bias_attitude_gain": float32_literal(e.accel_bias_attitude_gain),
+        # the split's Kalman filter: variances in rad^2 (a bias of b g tilts the estimate by b rad)
+        "split_bias_var": float32_literal(sp.nsimplify(e.accel_bias_prior_g, rational=True) ** 2),
+        "split_fc_var": float32_literal(sp.rad(sp.nsimplify(e.fc_error_deg, rational=True)) ** 2),
+        "split_white_var": float32_literal(sp.rad(sp.nsimplify(e.drone_attitude_white_deg, rational=True)) ** 2),
+        "split_bias_walk": float32_literal(sp.nsimplify(e.accel_bias_walk_g, rational=True) ** 2 / 60),
         **gate_params(e),
         # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
         "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)

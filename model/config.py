@@ -70,7 +70,7 @@ _KEYS_BY_TABLE = {
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
                  "link_bias_gain link_delay_min link_delay_max link_timeout lead_time drone_velocity "
                  "velocity_bandwidth link_gain_with_velocity link_bias_gain_with_velocity fc_error_gain "
-                 "fc_error_max_deg fc_error_tau accel_bias_attitude_gain accel_bias_bandwidth accel_bias_max_g gate_sigmas "
+                 "fc_error_max_deg fc_error_tau fc_error_deg drone_attitude_white_deg accel_bias_prior_g accel_bias_walk_g accel_bias_attitude_gain accel_bias_bandwidth accel_bias_max_g gate_sigmas "
                  "drone_attitude_noise_deg drone_velocity_noise drift_dps drift_max_deg reject_after retake_after "
                  "correction_max_deg",
 }
@@ -246,6 +246,10 @@ class Estimator:
     fc_error_gain: float           # 1/s: the flight controller's error learnt from its disagreement
     fc_error_max_deg: float        # deg: the clamp of the flight controller's estimated error
     fc_error_tau: float            # s: its correlation time, over which the learnt error fades (0: never)
+    fc_error_deg: float            # deg: its size, 1 sigma (the split's Kalman filter)
+    drone_attitude_white_deg: float  # deg: the drone attitude's white error per message, 1 sigma (the same)
+    accel_bias_prior_g: float      # g: the accelerometer's bias the split expects, 1 sigma (0: fixed gains)
+    accel_bias_walk_g: float       # g: how far that bias wanders in a minute, 1 sigma (the same)
     accel_bias_attitude_gain: float  # 1/s: the tilt and the accelerometer's bias moved towards the drone's attitude
     accel_bias_bandwidth: float    # rad/s: the accelerometer's bias learnt along up (0: not learnt)
     accel_bias_max_g: float        # g: the clamp of its estimate
@@ -654,6 +658,10 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
         fc_error_gain=r.number(k + "fc_error_gain", nonnegative=True, hi=10.0),
         fc_error_max_deg=r.number(k + "fc_error_max_deg", nonnegative=True, hi=10.0),
         fc_error_tau=r.number(k + "fc_error_tau", nonnegative=True, hi=3600.0),
+        fc_error_deg=r.number(k + "fc_error_deg", positive=True, hi=10.0),
+        drone_attitude_white_deg=r.number(k + "drone_attitude_white_deg", positive=True, hi=10.0),
+        accel_bias_prior_g=r.number(k + "accel_bias_prior_g", nonnegative=True, hi=0.5),
+        accel_bias_walk_g=r.number(k + "accel_bias_walk_g", nonnegative=True, hi=0.5),
         accel_bias_attitude_gain=r.number(k + "accel_bias_attitude_gain", nonnegative=True, hi=10.0),
         accel_bias_bandwidth=r.number(k + "accel_bias_bandwidth", nonnegative=True, hi=5.0),
         accel_bias_max_g=r.number(k + "accel_bias_max_g", positive=True, hi=0.5),
@@ -667,6 +675,9 @@ def _estimator(r: _Reader, sample_rate: float) -> Estimator:
         retake_after=r.number(k + "retake_after", nonnegative=True, hi=60.0),
         correction_max_deg=r.number(k + "correction_max_deg", lo=0.01, hi=45.0),
     )
+    if est.accel_bias_prior_g > 0 and est.fc_error_tau == 0:
+        raise r.fail(k + "fc_error_tau", "the split's Kalman filter (accel_bias_prior_g > 0) needs the flight "
+                                         "controller's error to come and go: set its correlation time (s)")
     if 0.0 < est.fc_error_tau < 10 * est.link_timeout:
         # one message fades fc_error by h / tau, h up to the link's timeout: at most a tenth
         raise r.fail(k + "fc_error_tau", f"must be 0 (never fades) or at least 10 x link_timeout "

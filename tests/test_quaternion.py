@@ -716,9 +716,13 @@ def test_lead_commands_the_pose_needed_lead_time_ahead(fw, offset_lead, which):
     ("link_delay_min = 0.015", "link_delay_min = 0.2", "estimator.link_delay_min: must be less than link_delay_max"),
     ("link_delay_max = 0.15", "link_delay_max = 0.4", "estimator.link_delay_max: the attitude history holds 30 samples"),
     ("link_timeout = 0.1", "link_timeout = 0.001", "estimator.link_timeout: must be >= 0.02"),
-    ("fc_error_tau = 30.0", "fc_error_tau = 0.5", "estimator.fc_error_tau: must be 0 (never fades) or at least "
+    ("fc_error_tau = 35.0", "fc_error_tau = 0.5", "estimator.fc_error_tau: must be 0 (never fades) or at least "
                                                  "10 x link_timeout (1 s), got 0.5"),
-    ("fc_error_tau = 30.0", "fc_error_tau = -1.0", "estimator.fc_error_tau: must not be negative"),
+    ("fc_error_tau = 35.0", "fc_error_tau = -1.0", "estimator.fc_error_tau: must not be negative"),
+    ("fc_error_tau = 35.0", "fc_error_tau = 0.0", "estimator.fc_error_tau: the split's Kalman filter "
+                                                 "(accel_bias_prior_g > 0) needs the flight controller's error"),
+    ("fc_error_deg = 0.35", "fc_error_deg = 0.0", "estimator.fc_error_deg: must be positive"),
+    ("accel_bias_walk_g = 0.0025", "accel_bias_walk_g = -0.001", "estimator.accel_bias_walk_g: must not be negative"),
     ("accel_gain = 0.5", "accel_gain = 80.0", "estimator.accel_gain: must be <= 50.0"),
     ("accel_reject_deg = 90.0", "accel_reject_deg = 0.0", "estimator.accel_reject_deg: must be >= 0.1"),
     ("bias_gain = 0.1", "bias_gain = nan", "estimator.bias_gain: must be finite"),

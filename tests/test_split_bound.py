@@ -25,14 +25,15 @@ def test_the_filters_predicted_variance_is_what_its_errors_show(sigma, tau):
 
 @pytest.mark.parametrize("sigma, tau", split_bound.CORNERS)
 def test_no_linear_estimate_beats_the_filter_that_knows_the_errors(sigma, tau):
-    """The same draws through the committed split, the split not fading, and the Kalman filter
-    with the ranges' middle as its priors: none has a lower tilt error than the filter given
-    the corner's own sigma and tau (1 % for the draws' spread)."""
+    """The same draws through the fixed gains, fading and not, and the Kalman filter with the
+    model file's sizes (the firmware's): none has a lower tilt error than the filter given the
+    corner's own sigma and tau (1 % for the draws' spread)."""
     b, f, w = split_bound.draws(sigma, tau)
     e = MODEL.estimator
     best = split_bound.scored_rms_deg(split_bound.kalman(b, f, w, sigma, tau)[0])
-    others = {"split": split_bound.split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain, e.fc_error_tau),
+    others = {"fading": split_bound.split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain, e.fc_error_tau),
               "not fading": split_bound.split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain, 0.0),
-              "middle": split_bound.kalman(b, f, w, 0.35, 35.0)[0]}
+              "model file": split_bound.kalman(b, f, w, e.fc_error_deg, e.fc_error_tau, e.accel_bias_prior_g,
+                                               e.accel_bias_walk_g)[0]}
     for name, errors in others.items():
         assert split_bound.scored_rms_deg(errors) >= 0.99 * best, name

@@ -46,9 +46,10 @@ def link_only():
 
 @pytest.fixture(scope="module")
 def unfaded():
-    """The committed model with the flight controller's learnt error never fading (fc_error_tau
-    0): the two sources' disagreement stays split in the ratio of the gains."""
-    v = variants.build({"estimator.fc_error_tau": 0.0})
+    """The committed model with the split's fixed gains (accel_bias_prior_g 0), the flight
+    controller's learnt error never fading (fc_error_tau 0): the two sources' disagreement
+    stays split in the ratio of the gains."""
+    v = variants.build({"estimator.fc_error_tau": 0.0, "estimator.accel_bias_prior_g": 0.0})
     return v.ffi, v.lib
 
 
@@ -383,29 +384,75 @@ def test_split_unfaded_an_accelerometer_bias_is_learnt_in_the_share_of_the_gains
         assert abs(run.rms(5.0) - (1 - share) * bias_tilt) < 0.1 * bias_tilt, run.rms(5.0)
 
 
-BIAS_LEARNT_S = 110.0    # within 1 mg of a 15 mg bias, committed model (101 s measured still, 99 swaying)
-BIAS_NEAR_S = 60.0       # within 3 mg (51 and 50 s)
+# The committed model's Kalman split, a 15 mg bias (1.7 sigma of its prior accel_bias_prior_g)
+# on x and on y: (axis, mg, s after engage from which it stays within mg of the truth), as
+# measured: still 57 s within 3 mg and 216 s within 1 mg on both axes; swaying, x (swept)
+# 52 s and 252 s, y 172 s within 3 mg and 232 s within 2 mg.
+BIAS_LEARNT = {"still": ((0, 3, 70), (1, 3, 70), (0, 1, 240), (1, 1, 240)),
+               "swaying": ((0, 3, 70), (1, 3, 190), (1, 2, 250))}
+BIAS_RUN_S = 260
 
 
 @pytest.mark.parametrize("motion", ["still", "swaying"])
 def test_a_15_mg_accelerometer_bias_is_learnt_in_full(fw, motion):
     """The committed model, the accelerometer 15 mg off on x and on y (1.22 deg of tilt), the
-    drone's attitude and velocity true, engaged from power-up, still on a bench or swaying
-    along x: the flight controller's learnt error fades (fc_error_tau), so the disagreement
-    that outlasts it ends as the bias: both axes within 3 mg from BIAS_NEAR_S on and within
-    1 mg from BIAS_LEARNT_S on, and the tilt within 0.1 deg at the end (1 mg is 0.06 deg; the
-    bias's whole tilt 1.22). (Not fading, the estimate keeps a third of it: the test above.)"""
-    flight = Flight(still, at_rest) if motion == "still" else swaying(seconds=BIAS_LEARNT_S + 10.0)
-    run = Run(fw, flight, accel_bias=BIAS_G)
+    drone's attitude and velocity true: 10 s on the bench from power-up, not engaged (the arm
+    levels on the accelerometer as it reads, nothing split), then engaged, still or swaying
+    along x. The flight controller's error comes and goes over fc_error_tau, so the split's
+    Kalman filter comes to take a lasting disagreement as the bias: each axis stays within
+    the BIAS_LEARNT bounds from their times on, and the tilt is within 0.15 deg at the end
+    (2 mg is 0.11 deg). (Fixed gains not fading keep a third of it: the test above.)"""
+    flight = Flight(still, at_rest) if motion == "still" else swaying(seconds=BIAS_RUN_S + 20.0)
+    run = Run(fw, flight, accel_bias=BIAS_G, engaged=False).run(10.0, attitude_error=(0.0, 0.0))
+    run.engaged = True
     off = []
-    for _ in range(round(BIAS_LEARNT_S) + 5):
+    for _ in range(BIAS_RUN_S):
         run.run(1.0, attitude_error=(0.0, 0.0))
-        off.append(np.abs(np.array(list(run.s.velocity.accel_bias))[:2] - BIAS_G[:2]).max())
-    within = {mg: next((i + 1 for i in range(len(off)) if max(off[i:]) < mg * 1e-3), None) for mg in (3, 1)}
-    print(f"\n{motion}: a 15 mg bias learnt within 3 mg from {within[3]} s on, within 1 mg from {within[1]} s on; "
-          f"tilt error {run.errors[-1]:.4f} deg")
-    assert max(off[round(BIAS_NEAR_S) - 1:]) < 3e-3 and max(off[round(BIAS_LEARNT_S) - 1:]) < 1e-3, within
-    assert run.errors[-1] < 0.1
+        off.append(np.abs(np.array(list(run.s.velocity.accel_bias))[:2] - BIAS_G[:2]))
+    off = np.array(off)
+    for axis, mg, after in BIAS_LEARNT[motion]:
+        stays = next((i + 1 for i in range(len(off)) if off[i:, axis].max() < mg * 1e-3), None)
+        print(f"\n{motion}: axis {axis} within {mg} mg of a 15 mg bias from {stays} s after engage on")
+        assert stays is not None and stays <= after, (axis, mg, stays)
+    assert run.errors[-1] < 0.15, run.errors[-1]
+
+
+def kalman_step(p, h):
+    """The textbook step of the split's filter (velocity.py) from covariance p (2 x 2) over
+    h s: predict (x0 a random walk of accel_bias_walk_g a minute, x1 first-order Markov of
+    fc_error_deg over fc_error_tau), update with H = (-1, 1) and R = drone_attitude_white_deg^2
+    as P - K S K^T."""
+    e = MODEL.estimator
+    a, fc2 = math.exp(-h / e.fc_error_tau), math.radians(e.fc_error_deg) ** 2
+    p = np.array([[p[0, 0] + e.accel_bias_walk_g ** 2 / 60 * h, a * p[0, 1]],
+                  [a * p[0, 1], a * a * p[1, 1] + (1 - a * a) * fc2]])
+    hv = np.array([-1.0, 1.0])
+    s = hv @ p @ hv + math.radians(e.drone_attitude_white_deg) ** 2
+    k = p @ hv / s
+    return p - np.outer(k, k) * s
+
+
+def test_the_splits_covariance_is_the_textbook_kalman_filters(fw):
+    """Engaged after 10 s on a still bench, the drone's attitude a little off: from the model
+    file's priors (accel_bias_prior_g, fc_error_deg), each message's covariance of the split
+    (stab.split_p, per axis P00, P01, P11) is the textbook step from the one before (the
+    firmware writes the Joseph form), and its gain for the bias falls as it learns."""
+    e = MODEL.estimator
+    run = Run(fw, Flight(still, at_rest), engaged=False).run(10.0, attitude_error=np.radians([0.3, -0.2]))
+    assert not run.s.split_started
+    run.engaged = True
+    prior = np.diag([e.accel_bias_prior_g ** 2, math.radians(e.fc_error_deg) ** 2])
+    got = []
+    for _ in range(100):    # one message each
+        run.run(0.02, attitude_error=np.radians([0.3, -0.2]))
+        got.append([np.array([[p[0], p[1]], [p[1], p[2]]]) for p in (list(q) for q in run.s.split_p)])
+    for axis in range(3):
+        want = kalman_step(prior, 0.02)
+        for k, step in enumerate(got):
+            assert np.allclose(step[axis], want, rtol=1e-4, atol=1e-4 * prior.max()), (axis, k)
+            want = kalman_step(step[axis], 0.02)
+    gain = [(p[0][0, 0] - p[0][0, 1]) for p in got]
+    assert gain[-1] < 0.2 * gain[0]
 
 
 def test_the_flight_controllers_learnt_error_is_clamped_at_fc_error_max(not_split):

@@ -45,6 +45,8 @@ STREAMS_ONLY = ("estimator.link_delay_min", "estimator.link_delay_max", "estimat
 VELOCITY_ONLY = ("estimator.velocity_bandwidth", "estimator.accel_bias_bandwidth", "estimator.accel_bias_max_g")
 LINK_AND_VELOCITY_ONLY = ("estimator.link_gain_with_velocity", "estimator.link_bias_gain_with_velocity",
                           "estimator.fc_error_gain", "estimator.fc_error_max_deg", "estimator.fc_error_tau",
+                          "estimator.fc_error_deg", "estimator.drone_attitude_white_deg", "estimator.accel_bias_prior_g",
+                          "estimator.accel_bias_walk_g",
                           "estimator.accel_bias_attitude_gain")
 
 

@@ -10,10 +10,12 @@ w. Each of its messages (50 Hz) gives the disagreement
 
     z = (f - f_hat) - (b - b_hat) + w
 
-which moves b_hat (the estimate, with the bias behind it) and f_hat (fc_error) either as the
-firmware does (the model file's accel_bias_attitude_gain, fc_error_gain and fc_error_tau),
-or by the Kalman filter of [b - b_hat, f - f_hat]: the best linear estimate for this model,
-with the ranges' middle as its priors, or with each corner's true sigma and tau.
+which moves b_hat (the estimate, with the bias behind it) and f_hat (fc_error): by the fixed
+gains (the model file's accel_bias_attitude_gain, fc_error_gain, fading over fc_error_tau or
+not), or by the Kalman filter of [b - b_hat, f - f_hat], as the firmware does with the model
+file's stated sizes (accel_bias_prior_g and _walk_g, fc_error_deg and _tau,
+drone_attitude_white_deg), and with each corner's true sigma and tau: the best linear
+estimate for this model.
 
 Figure: the tilt error b - b_hat, RMS over the report's scored window (5-35 s after engage),
 over 4,000 draws per corner of the ranges; every estimate sees the same draws.
@@ -28,7 +30,7 @@ import sys
 import numpy as np
 
 from ..model import config
-from . import error_ranges, imu_model
+from . import imu_model
 
 RATE_HZ = 50.0
 WINDOW_S = (5.0, 35.0)
@@ -63,19 +65,22 @@ def split(b, f, w, k_d: float, k_f: float, tau: float) -> np.ndarray:
     return out
 
 
-def kalman(b, f, w, sigma_deg: float, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
+def kalman(b, f, w, sigma_deg: float, tau_s: float, bias_g: float | None = None,
+           walk_g: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """(the tilt error after each message, its variance as the filter predicts it), corrected
-    by the Kalman filter of x = [b - b_hat, f - f_hat] (z = -x0 + x1 + w) with these priors
-    for f."""
+    by the Kalman filter of x = [b - b_hat, f - f_hat] (z = -x0 + x1 + w) with these priors:
+    f's sigma and tau, the bias's sigma (g; None: the draws' own, uniform within the ranges)
+    and its random walk (g a minute)."""
     h = 1.0 / RATE_HZ
     a, s2 = math.exp(-h / tau_s), math.radians(sigma_deg) ** 2
-    bias = math.atan(imu_model.ACCEL_BIAS_RANGE_G)
-    p = np.array([[bias * bias / 3.0, 0.0], [0.0, s2]])     # uniform +-bias: variance bias^2 / 3
+    bias_var = math.atan(imu_model.ACCEL_BIAS_RANGE_G) ** 2 / 3.0 if bias_g is None else bias_g ** 2
+    p = np.array([[bias_var, 0.0], [0.0, s2]])
+    q = walk_g ** 2 / 60.0 * h
     r = math.radians(WHITE_DEG) ** 2
     b_hat, f_hat, out, variance = np.zeros_like(b), np.zeros_like(b), np.empty_like(f), np.empty(len(f))
     for k in range(len(f)):
         f_hat *= a
-        p = np.array([[p[0, 0], a * p[0, 1]], [a * p[0, 1], a * a * p[1, 1] + (1 - a * a) * s2]])
+        p = np.array([[p[0, 0] + q, a * p[0, 1]], [a * p[0, 1], a * a * p[1, 1] + (1 - a * a) * s2]])
         hv = np.array([-1.0, 1.0])
         s = hv @ p @ hv + r
         gain = p @ hv / s
@@ -96,16 +101,15 @@ def scored_rms_deg(errors: np.ndarray) -> float:
 def table(model: config.Model) -> dict[tuple[float, float], dict[str, float]]:
     """Per corner, each estimate's tilt error RMS (deg)."""
     e = model.estimator
-    mid_sigma = sum(error_ranges.LINK["slow_deg"]) / 2
-    mid_tau = sum(error_ranges.LINK["slow_tau_s"]) / 2
     out = {}
     for sigma, tau in CORNERS:
         b, f, w = draws(sigma, tau)
         out[(sigma, tau)] = {
-            "split, fading (committed)": scored_rms_deg(split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain,
-                                                              e.fc_error_tau)),
-            "split, not fading": scored_rms_deg(split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain, 0.0)),
-            "Kalman, the ranges' middle": scored_rms_deg(kalman(b, f, w, mid_sigma, mid_tau)[0]),
+            "fixed gains, not fading": scored_rms_deg(split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain, 0.0)),
+            "fixed gains, fading": scored_rms_deg(split(b, f, w, e.accel_bias_attitude_gain, e.fc_error_gain,
+                                                        e.fc_error_tau)),
+            "Kalman, the model file's sizes (committed)": scored_rms_deg(
+                kalman(b, f, w, e.fc_error_deg, e.fc_error_tau, e.accel_bias_prior_g, e.accel_bias_walk_g)[0]),
             "Kalman, the corner's own": scored_rms_deg(kalman(b, f, w, sigma, tau)[0]),
         }
     return out

@@ -89,6 +89,10 @@ typedef struct {
     est_vel_t velocity;            /* the IMU's velocity and accelerometer bias estimates (drone_velocity) */
     float vel_last[3];             /* the last accepted drone_velocity (level frame, m/s) */
     float fc_error[3];             /* the flight controller's estimated tilt error, base axes, rad */
+    /* the split's Kalman filter per base axis: covariance of (the estimate's tilt error from
+     * the bias, fc_error's error) as P00, P01, P11 (rad^2); set at the first split message */
+    float split_p[3][3];
+    bool split_started;
     uint32_t vel_restarts;         /* velocity estimates restarted (first message, or a jump) */
     bool corrected;                /* a drone message corrected the attitude since the reset ... */
     uint32_t corrected_us;         /* ... at this local time (the gate widens with the time since) */

@@ -349,6 +349,44 @@ static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
  * all of it the flight controller's (fc_error following every turn of the estimate). */
 #define SPLIT (MODEL_ACCEL_BIAS_ATTITUDE_GAIN > 0.0f)
 
+/* The split's gains from a Kalman filter (velocity.py), when the model states the bias it
+ * expects; else the fixed gains. */
+#define SPLIT_KALMAN (MODEL_SPLIT_BIAS_VAR > 0.0f)
+
+/* One message's split by the Kalman filter of x = (the estimate's tilt error, fc_error's
+ * error) per base axis, measured as err = x1 - x0 + white: x0 the bias's tilt (prior
+ * accel_bias_prior_g, a random walk of accel_bias_walk_g a minute), x1 first-order Markov (fc_error_deg over fc_error_tau), white
+ * drone_attitude_white_deg. Out: the estimate's turn and fc_error's move (with its fading over
+ * the h s since the last message). Joseph form, so P stays symmetric and positive. */
+static void split_by_kalman(stab_t *s, float h, const float err[3], float turn[3], float learn[3])
+{
+    const float a = 1.0f - h * MODEL_FC_ERROR_FADE;
+    if (!s->split_started) {
+        for (int i = 0; i < 3; ++i) {
+            s->split_p[i][0] = MODEL_SPLIT_BIAS_VAR;
+            s->split_p[i][1] = 0.0f;
+            s->split_p[i][2] = MODEL_SPLIT_FC_VAR;
+        }
+        s->split_started = true;
+    }
+    for (int i = 0; i < 3; ++i) {
+        float *p = s->split_p[i];
+        /* predict: x0 wanders (accel_bias_walk_g a minute), x1 fades by a and its variance
+         * returns towards fc_error_deg^2 */
+        const float p00 = p[0] + h * MODEL_SPLIT_BIAS_WALK, p01 = a * p[1], p11 = a * a * p[2] + (1.0f - a * a) * MODEL_SPLIT_FC_VAR;
+        const float inv = 1.0f / (p00 + p11 - 2.0f * p01 + MODEL_SPLIT_WHITE_VAR);
+        const float kd = (p00 - p01) * inv, kf = (p11 - p01) * inv;   /* K = (-kd, kf) */
+        turn[i] = kd * err[i];
+        learn[i] = kf * err[i] - (1.0f - a) * s->fc_error[i];
+        /* P = (I - K H) P (I - K H)^T + K R K^T, H = (-1, 1): I - K H = ((1 - kd, kd), (kf, 1 - kf)) */
+        const float r00 = (1.0f - kd) * p00 + kd * p01, r01 = (1.0f - kd) * p01 + kd * p11;
+        const float r10 = kf * p00 + (1.0f - kf) * p01, r11 = kf * p01 + (1.0f - kf) * p11;
+        p[0] = r00 * (1.0f - kd) + r01 * kd + kd * kd * MODEL_SPLIT_WHITE_VAR;
+        p[1] = r00 * kf + r01 * (1.0f - kf) - kd * kf * MODEL_SPLIT_WHITE_VAR;
+        p[2] = r10 * kf + r11 * (1.0f - kf) + kf * kf * MODEL_SPLIT_WHITE_VAR;
+    }
+}
+
 /* fc_error += delta, within +-fc_error_max_deg per axis. */
 static void move_fc_error(stab_t *s, const float delta[3])
 {
@@ -417,14 +455,18 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
          * would leave the whole disagreement to fc_error. */
         const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
         float learn[3], turn[3], across[3];
-        for (int i = 0; i < 3; ++i) {
-            learn[i] = h * (MODEL_FC_ERROR_GAIN * err[i] - (SPLIT ? MODEL_FC_ERROR_FADE : 0.0f) * s->fc_error[i]);
-            turn[i] = h * MODEL_ACCEL_BIAS_ATTITUDE_GAIN * err[i];
+        if (SPLIT && SPLIT_KALMAN) {
+            split_by_kalman(s, h, err, turn, learn);
+        } else {
+            for (int i = 0; i < 3; ++i) {
+                learn[i] = h * (MODEL_FC_ERROR_GAIN * err[i] - (SPLIT ? MODEL_FC_ERROR_FADE : 0.0f) * s->fc_error[i]);
+                turn[i] = h * MODEL_ACCEL_BIAS_ATTITUDE_GAIN * err[i];
+            }
         }
         move_fc_error(s, learn);
         if (SPLIT) {
-            est_vel_tilt_as_bias(q_then, err, across);
-            est_accel_bias_update(s->velocity.accel_bias, across, h * MODEL_ACCEL_BIAS_ATTITUDE_GAIN);
+            est_vel_tilt_as_bias(q_then, turn, across);   /* the bias moves with the turn */
+            est_accel_bias_update(s->velocity.accel_bias, across, 1.0f);
             est_quat_turn(s->quat.q, turn);
             for (unsigned n = 0; n < s->hist_len; ++n) est_quat_turn(s->hist_q[n], turn);
         }
