@@ -66,14 +66,23 @@ disagreement closes at k_f + k_d per second, leaving the tilt error (k_f e_b + k
 (k_f + k_d): the two errors weighed by the gains (equal gains: their mean).
 
 But the flight controller's error comes and goes (a correlation time of tens of seconds) and
-the bias stays, so fc_error also fades at 1 / fc_error_tau (tau) while it learns:
+the bias stays. With fixed gains, fc_error therefore also fades at 1 / fc_error_tau (tau)
+while it learns, fc_error <- fc_error + h (k_f err - fc_error / tau), so that a disagreement
+that outlasts tau ends as the bias (at k_d / ((k_f + k_d) tau) per second).
 
-    fc_error <- fc_error + h (k_f err - fc_error / tau)
+The committed model weighs the two by their stated sizes instead: per base axis a Kalman
+filter of x = (x0, x1), x0 the estimate's tilt error from the bias (prior accel_bias_prior_g,
+a random walk of accel_bias_walk_g a minute), x1 fc_error's error (first-order Markov of
+fc_error_deg over tau), measured by each message as
 
-A disagreement that changes within tau is still weighed by the gains; one that outlasts it
-ends as the bias: the tilt error moves from the weighed one to e_f (to the truth when the
-flight controller is right) at k_d / ((k_f + k_d) tau) per second (1 / (45 s) for the
-committed 0.4, 0.2 and 30 s). With tau = 0 nothing fades.
+    err = x1 - x0 + white (drone_attitude_white_deg),     H = (-1, 1)
+
+Its gain K = (-k_d, k_f) per message moves the estimate and its bias by k_d err and fc_error
+by k_f err (fc_error fading by the prediction's h / tau); P is updated in Joseph form. Early
+on the disagreement is shared by the priors; then the part that outlasts tau goes to the
+bias, and the gain for it falls as it is learnt (tests/test_velocity_aiding.py checks P
+against the textbook step; uavarm/sim/split_bound.py compares the estimates on a scalar
+model of the two errors).
 """
 from __future__ import annotations
 
