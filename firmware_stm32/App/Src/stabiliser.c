@@ -355,9 +355,10 @@ static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
 
 /* One message's split by the Kalman filter of x = (the estimate's tilt error, fc_error's
  * error) per base axis, measured as err = x1 - x0 + white: x0 the bias's tilt (prior
- * accel_bias_prior_g, a random walk of accel_bias_walk_g a minute), x1 first-order Markov (fc_error_deg over fc_error_tau), white
- * drone_attitude_white_deg. Out: the estimate's turn and fc_error's move (with its fading over
- * the h s since the last message). Joseph form, so P stays symmetric and positive. */
+ * accel_bias_prior_g, a random walk of accel_bias_walk_g a minute), x1 first-order Markov
+ * (fc_error_deg over fc_error_tau), white drone_attitude_white_deg. Out: the estimate's turn
+ * and fc_error's move (with its fading over the h s since the last message). Joseph form, so
+ * P stays symmetric and positive. */
 static void split_by_kalman(stab_t *s, float h, const float err[3], float turn[3], float learn[3])
 {
     const float a = 1.0f - h * MODEL_FC_ERROR_FADE;
@@ -373,7 +374,8 @@ static void split_by_kalman(stab_t *s, float h, const float err[3], float turn[3
         float *p = s->split_p[i];
         /* predict: x0 wanders (accel_bias_walk_g a minute), x1 fades by a and its variance
          * returns towards fc_error_deg^2 */
-        const float p00 = p[0] + h * MODEL_SPLIT_BIAS_WALK, p01 = a * p[1], p11 = a * a * p[2] + (1.0f - a * a) * MODEL_SPLIT_FC_VAR;
+        const float p00 = p[0] + h * MODEL_SPLIT_BIAS_WALK, p01 = a * p[1];
+        const float p11 = a * a * p[2] + (1.0f - a * a) * MODEL_SPLIT_FC_VAR;
         const float inv = 1.0f / (p00 + p11 - 2.0f * p01 + MODEL_SPLIT_WHITE_VAR);
         const float kd = (p00 - p01) * inv, kf = (p11 - p01) * inv;   /* K = (-kd, kf) */
         turn[i] = kd * err[i];
@@ -446,11 +448,10 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
     if (aided && fresh && (!SPLIT || s->engaged)) {
         /* What is left of the disagreement (err) is the flight controller's slowly varying
          * error or, split, also the accelerometer's bias across up (velocity.py): fc_error
-         * moves towards the estimate at fc_error_gain and, split, the estimate towards the
-         * flight controller at accel_bias_attitude_gain, with the bias that holds it there (the
-         * velocity keeps agreeing); per second of the drone's time. Split, the learnt fc_error
-         * also fades at 1 / fc_error_tau, the flight controller's error being one that comes
-         * and goes: a disagreement that outlasts it ends as the bias. Split, only in flight:
+         * moves towards the estimate and, split, the estimate towards the flight controller,
+         * with the bias that holds it there (the velocity keeps agreeing), by the split's
+         * Kalman filter or by fixed gains (fc_error_gain, accel_bias_attitude_gain: per second
+         * of the drone's time, fc_error fading at 1 / fc_error_tau). Split, only in flight:
          * the arm at rest is levelled on the accelerometer as it reads, bias and all, which
          * would leave the whole disagreement to fc_error. */
         const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
