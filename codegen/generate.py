@@ -230,6 +230,25 @@ def servo_context(m: config.Model):
             "check_limits": _function([("const bool limits_ok", kinematics.joint_limits_ok(m, q))], q, Q)}
 
 
+def _split_step(m: config.Model):
+    """The split's Kalman filter, one axis: predict, gain, update (three parts, so that the
+    update stays in Joseph form and the gain's division is done once)."""
+    numeric = lambda exprs: [sp.N(e, 40) for e in exprs]
+    pred_c, k_c = [str(v) for v in velocity.SPLIT_PRED], [str(v) for v in velocity.SPLIT_K]
+    inputs = velocity.SPLIT_P + (velocity.SPLIT_H, velocity.SPLIT_ERR, velocity.SPLIT_FC)
+    names = [f"p[{i}]" for i in range(3)] + ["h", "err", "fc"]
+    predict = _function([(f"const float {n}", v) for n, v in zip(pred_c, numeric(velocity.split_predict(m)))],
+                        inputs, names, prefix="sp")
+    gain = _function([(f"const float {n}", v) for n, v in zip(k_c, numeric(velocity.split_gain(m)))],
+                     velocity.SPLIT_PRED, pred_c, prefix="sg")
+    update = _function(list(zip(["*turn", "*learn", "p[0]", "p[1]", "p[2]"], numeric(velocity.split_update(m)))),
+                       velocity.SPLIT_PRED + velocity.SPLIT_K + inputs, pred_c + k_c + names, prefix="su")
+    fades = velocity.SPLIT_FC in sp.sympify(velocity.split_update(m)[1]).free_symbols
+    return {"lines": ([] if fades else ["(void)fc;   /* fc_error never fades */"])
+            + predict["lines"] + gain["lines"] + update["lines"],
+            "ops": predict["ops"] + gain["ops"] + update["ops"]}
+
+
 @remembered
 def estimator_context(m: config.Model):
     acc, gyro, p = (attitude.ACC, attitude.GYRO, attitude.P_LEVEL)
@@ -291,6 +310,7 @@ def estimator_context(m: config.Model):
                               velocity.ACC_BIAS + velocity.ALONG + (velocity.K_A,), vec("bias") + vec("r") + ["k_a"])
     quat_turn = _function([(f"const float r{i}", v) for i, v in enumerate(velocity.turned())], Q + velocity.TURN,
                           [f"q[{i}]" for i in range(4)] + vec("turn"), prefix="t")
+    split = _split_step(m)
     q_arg = [f"q[{i}]" for i in range(4)]
     left = _function([(f"const float r{i}", v) for i, v in enumerate(quaternion.rotate_left())], Q + quaternion.CORR,
                      q_arg + [f"c[{i}]" for i in range(4)])
@@ -312,6 +332,7 @@ def estimator_context(m: config.Model):
         "vel_tilt_bias": tilt_bias,
         "accel_bias_update": accel_bias_up,
         "quat_turn": quat_turn,
+        "split_step": split,
         "bias_update": bias_up,
         "quat_from_acc": _function([(f"q[{i}]", up_acc[i]) for i in range(4)], acc, acc_c),
         "quat_up": _function([(f"up[{i}]", v) for i, v in enumerate(quaternion.up_of(Q))], Q, [f"q[{i}]" for i in range(4)]),
@@ -467,10 +488,8 @@ def estimator_params(m: config.Model):
                                          else 1 / sp.nsimplify(e.fc_error_tau, rational=True)),
         "accel_bias_attitude_gain": float32_literal(e.accel_bias_attitude_gain),
         # the split's Kalman filter: variances in rad^2 (a bias of b g tilts the estimate by b rad)
-        "split_bias_var": float32_literal(sp.nsimplify(e.accel_bias_prior_g, rational=True) ** 2),
-        "split_fc_var": float32_literal(sp.rad(sp.nsimplify(e.fc_error_deg, rational=True)) ** 2),
-        "split_white_var": float32_literal(sp.rad(sp.nsimplify(e.drone_attitude_white_deg, rational=True)) ** 2),
-        "split_bias_walk": float32_literal(sp.nsimplify(e.accel_bias_walk_g, rational=True) ** 2 / 60),
+        "split_bias_var": float32_literal(velocity.split_noises(m)["bias_var"]),
+        "split_fc_var": float32_literal(velocity.split_noises(m)["fc_var"]),
         **gate_params(e),
         # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
         "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)

@@ -78,7 +78,8 @@ fc_error_deg over tau), measured by each message as
     err = x1 - x0 + white (drone_attitude_white_deg),     H = (-1, 1)
 
 Its gain K = (-k_d, k_f) per message moves the estimate and its bias by k_d err and fc_error
-by k_f err (fc_error fading by the prediction's h / tau); P is updated in Joseph form. Early
+by k_f err (fc_error fading by the prediction's h / tau); P is updated in Joseph form
+(split_predict, split_gain, split_update below: est_split_step in C). Early
 on the disagreement is shared by the priors; then the part that outlasts tau goes to the
 bias, and the gain for it falls as it is learnt (tests/test_velocity_aiding.py checks P
 against the textbook step; uavarm/sim/split_bound.py compares the estimates on a scalar
@@ -101,6 +102,12 @@ ACC_BIAS = sp.symbols("abx aby abz", real=True)     # the accelerometer's bias e
 INNOV = sp.symbols("ex ey ez", real=True)           # an innovation e, base axes, m/s
 ALONG = sp.symbols("rx ry rz", real=True)           # its part along up, base axes, m/s
 K_A = sp.Symbol("k_a", real=True)
+SPLIT_P = sp.symbols("p00 p01 p11", real=True)     # the split's covariance, rad^2
+SPLIT_PRED = sp.symbols("m00 m01 m11", real=True)  # the same, predicted to the message
+SPLIT_K = sp.symbols("kd kf", real=True)           # its gain, K = (-kd, kf)
+SPLIT_H = sp.Symbol("h", positive=True)            # s since the previous message
+SPLIT_ERR = sp.Symbol("err", real=True)            # the message's disagreement on one axis, rad
+SPLIT_FC = sp.Symbol("fc", real=True)              # fc_error on that axis, rad
 
 
 def predict(m: Model):
@@ -154,3 +161,46 @@ def accel_bias_gains(bandwidth: float) -> dict[str, sp.Expr]:
     """k_u (1/s), k_a (g per m/s per s) of the bandwidth w_a (rad/s) along up."""
     w = sp.nsimplify(bandwidth, rational=True)
     return {"k_u": 2 * w, "k_a": w ** 2 / G}
+
+
+def split_noises(m: Model) -> dict[str, sp.Expr]:
+    """The split's Kalman filter, in rad^2 (a bias of b g tilts the estimate by b rad): prior
+    variances of x0 (bias) and x1 (fc_error's error), of the white error per message, the bias's
+    random walk per second, and fc_error's fading rate 1 / fc_error_tau (1/s, 0: never)."""
+    e = m.estimator
+    exact = lambda v: sp.nsimplify(v, rational=True)
+    return {"bias_var": exact(e.accel_bias_prior_g) ** 2,
+            "fc_var": sp.rad(exact(e.fc_error_deg)) ** 2,
+            "white_var": sp.rad(exact(e.drone_attitude_white_deg)) ** 2,
+            "bias_walk": exact(e.accel_bias_walk_g) ** 2 / 60,
+            "fade": sp.Integer(0) if e.fc_error_tau == 0 else 1 / exact(e.fc_error_tau)}
+
+
+def split_predict(m: Model):
+    """SPLIT_P predicted over SPLIT_H: x0 wanders by the bias's walk, x1 fades by
+    a = 1 - h / tau and its variance returns towards fc_error_deg^2 (first-order Markov)."""
+    n = split_noises(m)
+    p00, p01, p11 = SPLIT_P
+    a = 1 - SPLIT_H * n["fade"]
+    return [p00 + SPLIT_H * n["bias_walk"], a * p01, a ** 2 * p11 + (1 - a ** 2) * n["fc_var"]]
+
+
+def split_gain(m: Model):
+    """(kd, kf): K = P H^T / (H P H^T + R) for the predicted SPLIT_PRED, H = (-1, 1)."""
+    m00, m01, m11 = SPLIT_PRED
+    inv = 1 / (m00 + m11 - 2 * m01 + split_noises(m)["white_var"])
+    return [(m00 - m01) * inv, (m11 - m01) * inv]
+
+
+def split_update(m: Model):
+    """(turn, learn, p00, p01, p11) from SPLIT_PRED and SPLIT_K: the estimate turns by kd err,
+    fc_error moves by kf err less its fading over SPLIT_H, and P = (I - K H) P (I - K H)^T +
+    K R K^T (Joseph form: symmetric and positive in float32 too; kept in this form, not
+    simplified to (I - K H) P, which loses both)."""
+    n = split_noises(m)
+    kd, kf = SPLIT_K
+    m00, m01, m11 = SPLIT_PRED
+    i_kh = sp.Matrix([[1 - kd, kd], [kf, 1 - kf]])          # I - K H, K = (-kd, kf), H = (-1, 1)
+    k = sp.Matrix([-kd, kf])
+    p = i_kh * sp.Matrix([[m00, m01], [m01, m11]]) * i_kh.T + k * n["white_var"] * k.T
+    return [kd * SPLIT_ERR, kf * SPLIT_ERR - SPLIT_H * n["fade"] * SPLIT_FC, p[0, 0], p[0, 1], p[1, 1]]

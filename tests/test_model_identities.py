@@ -32,3 +32,44 @@ def test_four_candidates_are_distinct_solutions(model):
     for i in range(4):
         for j in range(i + 1, 4):
             assert np.max(np.abs(np.subtract(qs[i], qs[j]))) > 0.1
+
+
+def test_the_splits_joseph_update_is_the_kalman_filters(model):
+    """velocity.split_update's covariance (Joseph form, as emitted) at split_gain's gain is
+    the textbook P - K S K^T, and that gain minimises the updated variances: at any other
+    gain both P00 and P11 are larger (the filter is optimal, not merely consistent)."""
+    from uavarm.model import velocity
+    m00, m01, m11 = velocity.SPLIT_PRED
+    white = velocity.split_noises(model)["white_var"]
+    p = sp.Matrix([[m00, m01], [m01, m11]])
+    hv = sp.Matrix([[-1, 1]])
+    s = (hv * p * hv.T)[0] + white
+    k = p * hv.T / s
+    textbook = p - k * s * k.T
+    gain = dict(zip(velocity.SPLIT_K, velocity.split_gain(model)))
+    _, _, p00, p01, p11 = (sp.sympify(e).xreplace(gain) for e in velocity.split_update(model))
+    for got, want in ((p00, textbook[0, 0]), (p01, textbook[0, 1]), (p11, textbook[1, 1])):
+        assert sp.simplify(got - want) == 0
+    at = {m00: sp.Rational(3, 10 ** 5), m01: sp.Rational(-1, 10 ** 6), m11: sp.Rational(4, 10 ** 5)}
+    best = [float(e.xreplace(at)) for e in (p00, p11)]
+    kd, kf = velocity.SPLIT_K
+    for dk in ((0.05, 0), (-0.05, 0), (0, 0.05), (0, -0.05)):
+        other = {kd: gain[kd].xreplace(at) + dk[0], kf: gain[kf].xreplace(at) + dk[1]}
+        _, _, q00, _, q11 = (sp.sympify(e).xreplace(at).xreplace(other) for e in velocity.split_update(model))
+        assert float(q00) + float(q11) > best[0] + best[1]
+
+
+def test_the_splits_prediction_is_first_order_markov(model):
+    """Over h much shorter than fc_error_tau the predicted P11 relaxes towards fc_error_deg^2
+    as exp(-2 h / tau) does (to first order in h), P01 decays as exp(-h / tau), and P00 grows
+    by the bias's walk, accel_bias_walk_g^2 per minute."""
+    from uavarm.model import velocity
+    e = model.estimator
+    h, tau = sp.Rational(1, 100), sp.nsimplify(e.fc_error_tau, rational=True)
+    at = {velocity.SPLIT_H: h, velocity.SPLIT_P[0]: 0, velocity.SPLIT_P[1]: sp.Rational(1, 10 ** 5),
+          velocity.SPLIT_P[2]: 0}
+    p00, p01, p11 = (float(sp.sympify(v).xreplace(at)) for v in velocity.split_predict(model))
+    fc2 = np.radians(e.fc_error_deg) ** 2
+    assert np.isclose(p11, fc2 * (1 - np.exp(-2 * float(h / tau))), rtol=float(h / tau))
+    assert np.isclose(p01, 1e-5 * np.exp(-float(h / tau)), rtol=float(h / tau) ** 2 * 2)
+    assert np.isclose(p00, e.accel_bias_walk_g ** 2 / 60 * float(h), rtol=1e-12)

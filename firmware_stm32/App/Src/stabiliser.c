@@ -356,12 +356,11 @@ static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
 /* One message's split by the Kalman filter of x = (the estimate's tilt error, fc_error's
  * error) per base axis, measured as err = x1 - x0 + white: x0 the bias's tilt (prior
  * accel_bias_prior_g, a random walk of accel_bias_walk_g a minute), x1 first-order Markov
- * (fc_error_deg over fc_error_tau), white drone_attitude_white_deg. Out: the estimate's turn
- * and fc_error's move (with its fading over the h s since the last message). Joseph form, so
- * P stays symmetric and positive. */
+ * (fc_error_deg over fc_error_tau), white drone_attitude_white_deg (est_split_step, from
+ * velocity.py). Out: the estimate's turn and fc_error's move (with its fading over the h s
+ * since the last message). */
 static void split_by_kalman(stab_t *s, float h, const float err[3], float turn[3], float learn[3])
 {
-    const float a = 1.0f - h * MODEL_FC_ERROR_FADE;
     if (!s->split_started) {
         for (int i = 0; i < 3; ++i) {
             s->split_p[i][0] = MODEL_SPLIT_BIAS_VAR;
@@ -370,23 +369,7 @@ static void split_by_kalman(stab_t *s, float h, const float err[3], float turn[3
         }
         s->split_started = true;
     }
-    for (int i = 0; i < 3; ++i) {
-        float *p = s->split_p[i];
-        /* predict: x0 wanders (accel_bias_walk_g a minute), x1 fades by a and its variance
-         * returns towards fc_error_deg^2 */
-        const float p00 = p[0] + h * MODEL_SPLIT_BIAS_WALK, p01 = a * p[1];
-        const float p11 = a * a * p[2] + (1.0f - a * a) * MODEL_SPLIT_FC_VAR;
-        const float inv = 1.0f / (p00 + p11 - 2.0f * p01 + MODEL_SPLIT_WHITE_VAR);
-        const float kd = (p00 - p01) * inv, kf = (p11 - p01) * inv;   /* K = (-kd, kf) */
-        turn[i] = kd * err[i];
-        learn[i] = kf * err[i] - (1.0f - a) * s->fc_error[i];
-        /* P = (I - K H) P (I - K H)^T + K R K^T, H = (-1, 1): I - K H = ((1 - kd, kd), (kf, 1 - kf)) */
-        const float r00 = (1.0f - kd) * p00 + kd * p01, r01 = (1.0f - kd) * p01 + kd * p11;
-        const float r10 = kf * p00 + (1.0f - kf) * p01, r11 = kf * p01 + (1.0f - kf) * p11;
-        p[0] = r00 * (1.0f - kd) + r01 * kd + kd * kd * MODEL_SPLIT_WHITE_VAR;
-        p[1] = r00 * kf + r01 * (1.0f - kf) - kd * kf * MODEL_SPLIT_WHITE_VAR;
-        p[2] = r10 * kf + r11 * (1.0f - kf) + kf * kf * MODEL_SPLIT_WHITE_VAR;
-    }
+    for (int i = 0; i < 3; ++i) est_split_step(s->split_p[i], h, err[i], s->fc_error[i], &turn[i], &learn[i]);
 }
 
 /* fc_error += delta, within +-fc_error_max_deg per axis. */
