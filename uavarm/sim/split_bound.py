@@ -30,13 +30,16 @@ import sys
 import numpy as np
 
 from ..model import config
-from . import imu_model
+from . import error_ranges, imu_model
 
 RATE_HZ = 50.0
 WINDOW_S = (5.0, 35.0)
 DRAWS = 4000
-WHITE_DEG = 0.35                                    # the ranges' middle, per message
-CORNERS = ((0.2, 10.0), (0.5, 10.0), (0.35, 30.0), (0.2, 60.0), (0.5, 60.0))   # (sigma deg, tau s)
+WHITE_DEG = sum(error_ranges.LINK["noise_deg"]) / 2          # the range's middle, per message
+# (sigma deg, tau s): the four corners of the flight controller's slow error and the middle
+_SIGMA, _TAU = error_ranges.LINK["slow_deg"], error_ranges.LINK["slow_tau_s"]
+CORNERS = ((_SIGMA[0], _TAU[0]), (_SIGMA[1], _TAU[0]), (sum(_SIGMA) / 2, sum(_TAU) / 2),
+           (_SIGMA[0], _TAU[1]), (_SIGMA[1], _TAU[1]))
 
 
 def draws(sigma_deg: float, tau_s: float, seed: int = 0):
