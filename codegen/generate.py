@@ -484,8 +484,7 @@ def estimator_params(m: config.Model):
         "link_bias_gain_with_velocity": float32_literal(e.link_bias_gain_with_velocity),
         "fc_error_gain": float32_literal(e.fc_error_gain),
         "fc_error_max": float32_literal(sp.rad(sp.nsimplify(e.fc_error_max_deg, rational=True))),
-        "fc_error_fade": float32_literal(sp.Integer(0) if e.fc_error_tau == 0
-                                         else 1 / sp.nsimplify(e.fc_error_tau, rational=True)),
+        "fc_error_fade": float32_literal(velocity.split_noises(m)["fade"]),
         "accel_bias_attitude_gain": float32_literal(e.accel_bias_attitude_gain),
         # the split's Kalman filter: variances in rad^2 (a bias of b g tilts the estimate by b rad)
         "split_bias_var": float32_literal(velocity.split_noises(m)["bias_var"]),
