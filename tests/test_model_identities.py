@@ -3,7 +3,7 @@ import mpmath as mp
 import numpy as np
 import sympy as sp
 
-from uavarm.model import kinematics
+from uavarm.model import kinematics, velocity
 
 
 def test_fk_of_model_ik_is_identity(model):
@@ -37,8 +37,7 @@ def test_four_candidates_are_distinct_solutions(model):
 def test_the_splits_joseph_update_is_the_kalman_filters(model):
     """velocity.split_update's covariance (Joseph form, as emitted) at split_gain's gain is
     the textbook P - K S K^T, and that gain minimises the updated variances: at any other
-    gain both P00 and P11 are larger (the filter is optimal, not merely consistent)."""
-    from uavarm.model import velocity
+    gain their sum P00 + P11 is larger (the filter is optimal, not merely consistent)."""
     m00, m01, m11 = velocity.SPLIT_PRED
     white = velocity.split_noises(model)["white_var"]
     p = sp.Matrix([[m00, m01], [m01, m11]])
@@ -63,7 +62,6 @@ def test_the_splits_prediction_is_first_order_markov(model):
     """Over h much shorter than fc_error_tau the predicted P11 relaxes towards fc_error_deg^2
     as exp(-2 h / tau) does (to first order in h), P01 decays as exp(-h / tau), and P00 grows
     by the bias's walk, accel_bias_walk_g^2 per minute."""
-    from uavarm.model import velocity
     e = model.estimator
     h, tau = sp.Rational(1, 100), sp.nsimplify(e.fc_error_tau, rational=True)
     at = {velocity.SPLIT_H: h, velocity.SPLIT_P[0]: 0, velocity.SPLIT_P[1]: sp.Rational(1, 10 ** 5),
