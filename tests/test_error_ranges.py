@@ -24,6 +24,10 @@ def test_draws_stay_within_the_ranges_and_fill_them():
 def test_a_seed_draws_the_same_errors_and_the_imu_profile_can_be_chosen():
     base = scenarios.load("bench")
     assert error_ranges.drawn(base, 4) == error_ranges.drawn(base, 4)
+    lossy = dataclasses.replace(base, link=dataclasses.replace(base.link, outages=((20.0, 50.0),)),
+                                velocity=dataclasses.replace(base.velocity, outages=((5.0, 6.0),)))
+    assert error_ranges.drawn(lossy, 4).link.outages == ((20.0, 50.0),)      # the draw keeps the outages
+    assert error_ranges.drawn(lossy, 4).velocity.outages == ((5.0, 6.0),)
     assert error_ranges.drawn(base, 4).link != error_ranges.drawn(base, 5).link
     assert error_ranges.drawn(base, 4, "datasheet").imu_profile == "datasheet"
 

@@ -20,9 +20,9 @@ def test_builtin_scenarios_round_trip_through_the_file_format(name):
 def test_a_full_scenario_file_round_trips(tmp_path):
     s = Scenario("windy", "hover", {"gust_mps": 1.5, "mean_wind_mps": 4.0}, "datasheet", False,
                  LinkParams(rate_hz=60.0, delay_ms=30.0, jitter_ms=10.0, noise_deg=0.3, slow_deg=0.2, slow_tau_s=12.0,
-                            bias_deg=0.1),
+                            bias_deg=0.1, outages=((20.0, 50.0), (70.0, 71.5))),
                  VelocityParams(rate_hz=100.0, delay_ms=40.0, jitter_ms=2.0, noise_mps=0.1, slow_mps=0.03,
-                                slow_tau_s=5.0),
+                                slow_tau_s=5.0, outages=((30.0, 40.0),)),
                  (50.0, -10.0, -110.0))
     path = tmp_path / "windy.toml"
     path.write_text(scenarios.dump(s))
@@ -84,6 +84,11 @@ HEADER = "t,roll,pitch,ax,ay,az\n"
     ('kind = "bench"\n[velocity]\nrate_hz = 10.0\n', None, ["velocity.rate_hz", ">= 30 Hz"]),
     ('kind = "bench"\n[velocity]\nnoise_mps = -1.0\n', None, ["velocity.noise_mps", "must be >= 0.0"]),
     ('kind = "bench"\n[velocity]\nnoise_deg = 0.1\n', None, ["velocity.noise_deg", "unknown key"]),
+    ('kind = "bench"\n[link]\noutages = 3.0\n', None, ["link.outages", "[from, to] pairs"]),
+    ('kind = "bench"\n[link]\noutages = [[1.0, 2.0, 3.0]]\n', None, ["link.outages", "[from, to] pairs"]),
+    ('kind = "bench"\n[velocity]\noutages = [[5.0, 3.0]]\n', None, ["velocity.outages", "end after it starts"]),
+    ('kind = "bench"\n[velocity]\noutages = [[-1.0, 3.0]]\n', None, ["velocity.outages", "must be >= 0.0"]),
+    ('kind = "bench"\n[velocity]\noutages = [["a", 3.0]]\n', None, ["velocity.outages", "finite number"]),
     ('kind = "bench"\n[arm]\ntarget = [1.0, 2.0]\n', None, ["arm.target", "[x, y, z]"]),
     ('kind = "bench"\nname = [\n', None, ["not valid TOML"]),
     ('kind = "replay"\n', None, ["motion.csv", "flight log"]),

@@ -94,6 +94,44 @@ def test_link_attitude_messages_rate_delay_sequence_and_error():
     assert err.std(axis=0) == pytest.approx([0.2, 0.2], rel=0.15)
 
 
+@pytest.mark.parametrize("stream", ["attitude", "velocity"])
+def test_an_outage_loses_the_messages_measured_within_it(stream):
+    """A stream with outages (3, 5) and (8, 8.5) s after engage, engaged 1.5 s into the
+    flight: no message is measured within them (from its stamp: the drone's clock), every
+    other one arrives, the sequence numbers skip the lost ones, and the slow error goes on
+    changing through the gap (a flight controller's error after 2 s of a 0.5 s correlation
+    time is nearly a fresh draw: it is compared over many such gaps)."""
+    f = drone.hover(30.0, np.random.default_rng(2))
+    outages = ((3.0, 5.0), (8.0, 8.5))
+    if stream == "attitude":
+        p = scenarios.LinkParams(rate_hz=50.0, noise_deg=0.0, slow_deg=1.0, slow_tau_s=0.5, outages=outages)
+        link = closed_loop.LinkAttitude(p, f, np.random.default_rng(3), engage_s=1.5)
+    else:
+        p = scenarios.VelocityParams(rate_hz=50.0, noise_mps=0.0, slow_mps=1.0, slow_tau_s=0.5, outages=outages)
+        link = closed_loop.LinkVelocity(p, f, np.random.default_rng(3), engage_s=1.5)
+    msgs = []
+    while link.next_time < 12.0:
+        msgs.append(link.pop())
+    stamps = np.array([m["stamp_us"] for m in msgs], dtype=np.int64)
+    k = 1 + np.concatenate([[0], np.cumsum((np.diff(stamps) % 2 ** 32) // 20000)])   # messages measured
+    t_after_engage = k / 50.0 - 1.5
+    lost = [(a <= t_after_engage) & (t_after_engage < b) for a, b in outages]
+    assert not np.any(lost), t_after_engage[np.any(lost, axis=0)]
+    expected = [t for t in np.arange(1, round(11.98 * 50) + 1) / 50.0 - 1.5
+                if not any(a <= t + 1e-9 < b for a, b in outages)]
+    assert len(msgs) == pytest.approx(len(expected), abs=2)
+    seq = np.array([m["seq"] for m in msgs])
+    assert np.array_equal(np.diff(seq) % 65536, np.diff(k))              # the lost ones' numbers skipped
+    assert np.diff(k).max() == 101                                       # 100 lost: 2 s at 50 Hz
+    before, after = msgs[int(np.argmax(np.diff(k)))], msgs[int(np.argmax(np.diff(k))) + 1]
+    idx = [round(kk / 50.0 * drone.RATE) for kk in (k[int(np.argmax(np.diff(k)))], k[int(np.argmax(np.diff(k))) + 1])]
+    if stream == "attitude":
+        jump = abs(math.degrees(after["roll"] - f.roll[idx[1]]) - math.degrees(before["roll"] - f.roll[idx[0]]))
+    else:
+        jump = abs((after["vx"] - f.vel[idx[1], 0]) - (before["vx"] - f.vel[idx[0], 0]))
+    assert jump > 0.05, jump                                             # not continued from before the gap
+
+
 def test_the_slow_error_is_a_first_order_markov_process():
     """SlowError: stationary RMS sigma, and the correlation e^(-lag / tau) at any lag (the
     process's definition), checked over many correlation times."""

@@ -123,13 +123,17 @@ class SlowError:
 
 class DroneStream:
     """Messages of the drone's computer: measured at rate_hz, stamped in the drone's clock,
-    delivered after a jittered delay, in order (a serial link does not reorder). Subclasses
-    say what is measured (`measure(i)`, the flight's sample index)."""
+    delivered after a jittered delay, in order (a serial link does not reorder), except
+    those measured within one of the stream's outages (s after engage at engage_s of the
+    flight), lost on the way: their sequence numbers are skipped, and the slow error goes
+    on changing meanwhile. Subclasses say what is measured (`measure(i)`, the flight's
+    sample index) and hold the slow error (`slow`)."""
 
-    def __init__(self, p, flight: drone.Flight, rng: np.random.Generator):
+    def __init__(self, p, flight: drone.Flight, rng: np.random.Generator, engage_s: float = 0.0):
         self.p = p
         self.flight = flight
         self.rng = rng
+        self.engage_s = engage_s
         self.clock_offset_us = int(rng.integers(0, 2 ** 32))
         self.seq = int(rng.integers(0, 2 ** 16))
         self.k = 1
@@ -139,7 +143,19 @@ class DroneStream:
     def measure(self, i: int) -> dict:
         raise NotImplementedError
 
+    def _skip_outages(self):
+        while True:
+            t = self.k / self.p.rate_hz - self.engage_s
+            end = next((b for a, b in self.p.outages if a <= t < b), None)
+            if end is None:
+                return
+            lost = max(math.ceil((end + self.engage_s) * self.p.rate_hz) - self.k, 1)
+            self.slow.step(lost / self.p.rate_hz)
+            self.k += lost
+            self.seq = (self.seq + lost) & 0xFFFF
+
     def _schedule(self):
+        self._skip_outages()
         t_meas = self.k / self.p.rate_hz
         delay = (self.p.delay_ms + self.rng.uniform(-1, 1) * self.p.jitter_ms) / 1000.0
         arrival = max(t_meas + delay, self.last_arrival)
@@ -164,10 +180,11 @@ class LinkAttitude(DroneStream):
     """The flight controller's roll and pitch: truth plus a constant, a slowly varying and a
     white error per axis."""
 
-    def __init__(self, p: scenarios.LinkParams, flight: drone.Flight, rng: np.random.Generator):
+    def __init__(self, p: scenarios.LinkParams, flight: drone.Flight, rng: np.random.Generator,
+                 engage_s: float = 0.0):
         self.bias = np.radians(rng.uniform(-1, 1, 2) * p.bias_deg)
         self.slow = SlowError(math.radians(p.slow_deg), p.slow_tau_s, 2, rng)
-        super().__init__(p, flight, rng)
+        super().__init__(p, flight, rng, engage_s)
 
     def measure(self, i):
         att = np.array([self.flight.roll[i], self.flight.pitch[i]]) + self.bias \
@@ -179,9 +196,10 @@ class LinkVelocity(DroneStream):
     """The odometry's velocity of the centre of rotation (level, heading-following frame):
     truth plus a slowly varying and a white error per axis."""
 
-    def __init__(self, p: scenarios.VelocityParams, flight: drone.Flight, rng: np.random.Generator):
+    def __init__(self, p: scenarios.VelocityParams, flight: drone.Flight, rng: np.random.Generator,
+                 engage_s: float = 0.0):
         self.slow = SlowError(p.slow_mps, p.slow_tau_s, 3, rng)
-        super().__init__(p, flight, rng)
+        super().__init__(p, flight, rng, engage_s)
 
     def measure(self, i):
         v = self.flight.vel[i] + self.slow.step(1.0 / self.p.rate_hz) + self.rng.standard_normal(3) * self.p.noise_mps
@@ -221,10 +239,12 @@ def simulate(scenario: scenarios.Scenario, variant: Variant, seed: int = 0, sett
     send_attitude = fuses(model, "drone_attitude") if st.drone_attitude is None else st.drone_attitude
     send_velocity = fuses(model, "drone_velocity") if st.drone_velocity is None else st.drone_velocity
     streams = []   # (message name, stream)
+    engage_s = st.preflight + st.engage_at
     if send_attitude:
-        streams.append(("drone_attitude", LinkAttitude(scenario.link, flight, rng)))
+        streams.append(("drone_attitude", LinkAttitude(scenario.link, flight, rng, engage_s)))
     if send_velocity:
-        streams.append(("drone_velocity", LinkVelocity(scenario.velocity, flight, np.random.default_rng([seed, 4]))))
+        streams.append(("drone_velocity", LinkVelocity(scenario.velocity, flight, np.random.default_rng([seed, 4]),
+                                                       engage_s)))
     ffi, lib = variant.ffi, variant.lib
     stab = ffi.addressof(board.app, "stab")
     roll_p, pitch_p = ffi.new("float *"), ffi.new("float *")

@@ -44,8 +44,10 @@ def drawn(scenario: scenarios.Scenario, seed: int, imu_profile: str | None = Non
 
     def params(cls, ranges):
         return cls(**{name: float(rng.uniform(lo, hi)) for name, (lo, hi) in ranges.items()})
-    streams = {"link": dataclasses.replace(params(scenarios.LinkParams, LINK), bias_deg=0.0),
-               "velocity": params(scenarios.VelocityParams, VELOCITY)}
+    streams = {"link": dataclasses.replace(params(scenarios.LinkParams, LINK), bias_deg=0.0,
+                                           outages=scenario.link.outages),
+               "velocity": dataclasses.replace(params(scenarios.VelocityParams, VELOCITY),
+                                               outages=scenario.velocity.outages)}
     for name in without:
         stream, fields = LEFT_OUT[name]
         streams[stream] = dataclasses.replace(streams[stream], **{f: 0.0 for f in fields})

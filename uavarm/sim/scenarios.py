@@ -18,6 +18,7 @@ prints them):
     slow_deg = 0.35             # ... plus a slowly varying part (first-order Markov), RMS ...
     slow_tau_s = 30.0           # ... with this correlation time
     bias_deg = 0.0              # ... plus a constant, uniform +-
+    outages = [[20.0, 50.0]]    # [from, to] s after engage: no message arrives (default none)
     [velocity]                  # drone_velocity: the odometry's velocity, forwarded
     rate_hz = 50.0
     delay_ms = 20.0
@@ -25,6 +26,7 @@ prints them):
     noise_mps = 0.05            # velocity error per axis: white, RMS ...
     slow_mps = 0.05             # ... plus a slowly varying part (first-order Markov), RMS ...
     slow_tau_s = 30.0           # ... with this correlation time
+    outages = []
     [arm]
     target = [60.0, 20.0, -120.0]   # set position, mm, level frame
 
@@ -71,6 +73,7 @@ class LinkParams:
     slow_deg: float = 0.35
     slow_tau_s: float = 30.0
     bias_deg: float = 0.0
+    outages: tuple[tuple[float, float], ...] = ()   # (from, to) s after engage: messages lost
 
 
 @dataclass(frozen=True)
@@ -82,6 +85,7 @@ class VelocityParams:
     noise_mps: float = 0.05
     slow_mps: float = 0.05
     slow_tau_s: float = 30.0
+    outages: tuple[tuple[float, float], ...] = ()   # (from, to) s after engage: messages lost
 
 
 @dataclass(frozen=True)
@@ -202,7 +206,15 @@ def parse(text: str, where: str = "<scenario>", base_dir: Path | None = None) ->
         for name in t:
             if name not in fields:
                 raise fail(f"{key}.{name}", f"unknown key (expected {', '.join(sorted(fields))})")
-        p = params_class(**{k: number(f"{key}.{k}", v, lo=0.0) for k, v in t.items()})
+        outages = t.get("outages", [])
+        if not isinstance(outages, list) or not all(isinstance(o, list) and len(o) == 2 for o in outages):
+            raise fail(f"{key}.outages", f"expected a list of [from, to] pairs (s after engage), got {outages!r}")
+        outages = tuple(tuple(number(f"{key}.outages", v, lo=0.0) for v in o) for o in outages)
+        for start, end in outages:
+            if not start < end:
+                raise fail(f"{key}.outages", f"each [from, to] must end after it starts, got [{start}, {end}]")
+        p = params_class(**{k: number(f"{key}.{k}", v, lo=0.0) for k, v in t.items() if k != "outages"},
+                         outages=outages)
         if p.rate_hz < 30.0:
             raise fail(f"{key}.rate_hz", f"the drone's messages must come at >= 30 Hz, got {p.rate_hz}")
         if p.jitter_ms > p.delay_ms:
