@@ -70,7 +70,8 @@ _KEYS_BY_TABLE = {
                  "accel_reject_g accel_reject_deg gyro_bias_max_dps drone_attitude link_gain "
                  "link_bias_gain link_delay_min link_delay_max link_timeout lead_time drone_velocity "
                  "velocity_bandwidth link_gain_with_velocity link_bias_gain_with_velocity fc_error_gain "
-                 "fc_error_max_deg fc_error_tau fc_error_deg drone_attitude_white_deg accel_bias_prior_g accel_bias_walk_g accel_bias_attitude_gain accel_bias_bandwidth accel_bias_max_g gate_sigmas "
+                 "fc_error_max_deg fc_error_tau fc_error_deg drone_attitude_white_deg accel_bias_prior_g "
+                 "accel_bias_walk_g accel_bias_attitude_gain accel_bias_bandwidth accel_bias_max_g gate_sigmas "
                  "drone_attitude_noise_deg drone_velocity_noise drift_dps drift_max_deg reject_after retake_after "
                  "correction_max_deg",
 }

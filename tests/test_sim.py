@@ -123,8 +123,9 @@ def test_an_outage_loses_the_messages_measured_within_it(stream):
     seq = np.array([m["seq"] for m in msgs])
     assert np.array_equal(np.diff(seq) % 65536, np.diff(k))              # the lost ones' numbers skipped
     assert np.diff(k).max() == 101                                       # 100 lost: 2 s at 50 Hz
-    before, after = msgs[int(np.argmax(np.diff(k)))], msgs[int(np.argmax(np.diff(k))) + 1]
-    idx = [round(kk / 50.0 * drone.RATE) for kk in (k[int(np.argmax(np.diff(k)))], k[int(np.argmax(np.diff(k))) + 1])]
+    gap = int(np.argmax(np.diff(k)))                                     # the last message before the long gap
+    before, after = msgs[gap], msgs[gap + 1]
+    idx = [round(kk / 50.0 * drone.RATE) for kk in (k[gap], k[gap + 1])]
     if stream == "attitude":
         jump = abs(math.degrees(after["roll"] - f.roll[idx[1]]) - math.degrees(before["roll"] - f.roll[idx[0]]))
     else:
