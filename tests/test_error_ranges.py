@@ -5,7 +5,9 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
+from uavarm.build import variants
 from uavarm.sim import error_ranges, scenarios
 
 
@@ -51,3 +53,20 @@ def test_an_error_left_out_is_zero_and_the_rest_drawn_as_before():
         assert getattr(before, fields[0]) > 0.0
         other = "velocity" if stream == "link" else "link"
         assert getattr(cut, other) == getattr(full, other)
+
+
+def test_stated_sizes_tell_the_split_each_draws_own_errors():
+    """`--sizes-as-drawn`: the model file's split sizes become the draw's own (the flight
+    controller's slow error, its correlation time and white error), the bias prior the spread
+    of a uniform draw over the profile's horizontal range; a size left out is floored, not 0."""
+    base = scenarios.load("hover")
+    for seed, profile, half_width_g in ((3, None, 0.015), (8, "calibrated", 0.005)):
+        d = error_ranges.drawn(base, seed, profile)
+        est = variants.model_of(variants.edits(None, error_ranges.stated_sizes(d))).estimator
+        assert est.fc_error_deg == pytest.approx(d.link.slow_deg, rel=1e-5)
+        assert est.fc_error_tau == pytest.approx(d.link.slow_tau_s, rel=1e-5)
+        assert est.drone_attitude_white_deg == pytest.approx(d.link.noise_deg, rel=1e-5)
+        assert est.accel_bias_prior_g == pytest.approx(half_width_g / 3 ** 0.5, rel=1e-5)
+    quiet = error_ranges.drawn(base, 3, without=("attitude-slow",))
+    est = variants.model_of(variants.edits(None, error_ranges.stated_sizes(quiet))).estimator
+    assert est.fc_error_deg == error_ranges.SIZE_FLOOR["fc_error_deg"] > 0.0

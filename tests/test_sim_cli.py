@@ -210,6 +210,13 @@ def test_report_stops_on_an_unknown_estimator_key(tmp_path, capsys):
     assert not (tmp_path / "report.md").exists()
 
 
+@pytest.mark.parametrize("option", [["--without", "attitude-slow"], ["--sizes-as-drawn"]])
+def test_report_refuses_a_draws_option_without_draws(option, tmp_path, capsys):
+    rc = sim_report.main(["--out", str(tmp_path), "--fixed-errors", *option, "--seconds", "1", "--seeds", "1"])
+    assert rc == 2 and f"{option[0]} needs the draws" in capsys.readouterr().err
+    assert not (tmp_path / "report.md").exists()
+
+
 def test_report_writes_the_markdown_table(tmp_path):
     rc = sim_report.main(["--out", str(tmp_path), "--estimators", "model", "--scenarios", "bench", "hover",
                           "--seconds", "1", "--seeds", "1", "--jobs", "1"])

@@ -54,6 +54,22 @@ def drawn(scenario: scenarios.Scenario, seed: int, imu_profile: str | None = Non
     return dataclasses.replace(scenario, imu_profile=imu_profile or IMU_PROFILE, **streams)
 
 
+# The smallest size stated_sizes gives: the model file needs the split's sizes positive.
+SIZE_FLOOR = {"fc_error_deg": 0.01, "drone_attitude_white_deg": 0.01, "accel_bias_prior_g": 0.0005}
+
+
+def stated_sizes(scenario: scenarios.Scenario) -> list[str]:
+    """KEY=VALUE edits that state this draw's own error sizes to the split's Kalman filter: the
+    flight controller's slow error and its correlation time, its white error, and the spread of
+    the IMU profile's horizontal accelerometer bias (uniform, so half-width / sqrt 3). A filter
+    that knows each drone's sizes, though not its errors; sizes under SIZE_FLOOR are floored."""
+    imu = imu_model.PROFILES[scenario.imu_profile]
+    sizes = {"fc_error_deg": scenario.link.slow_deg, "drone_attitude_white_deg": scenario.link.noise_deg,
+             "accel_bias_prior_g": max(imu.accel_bias_g[:2]) / math.sqrt(3.0)}
+    edits = [f"estimator.{key}={max(value, SIZE_FLOOR[key]):.6g}" for key, value in sizes.items()]
+    return edits + [f"estimator.fc_error_tau={scenario.link.slow_tau_s:.6g}"]
+
+
 def describe(scenario: scenarios.Scenario, imu: imu_model.ImuDraw | None) -> str:
     """One draw in words: what a reader needs to judge the worst case."""
     a, v = scenario.link, scenario.velocity

@@ -223,14 +223,19 @@ def main(argv=None) -> int:
                          "bias a fresh calibration leaves)")
     ap.add_argument("--without", action="append", default=[], choices=sorted(error_ranges.LEFT_OUT),
                     help="an error of the drone's data left out of the draws (0), to see what it costs (repeatable)")
+    ap.add_argument("--sizes-as-drawn", action="store_true",
+                    help="state each draw's own error sizes to the split's Kalman filter (the flight controller's "
+                         "slow and white errors, the accelerometer bias's spread): a filter that knows each drone's "
+                         "sizes, though not its errors")
     ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--supply", type=float, default=None, metavar="VOLTS",
                     help="the simulated servos' battery, open circuit (default: ax12_sim.Supply's)")
     args = ap.parse_args(argv)
-    if args.without and args.fixed_errors:
-        print("error: --without leaves an error out of the draws; with --fixed-errors there are none", file=sys.stderr)
-        return 2
+    for option, given in (("--without", args.without), ("--sizes-as-drawn", args.sizes_as_drawn)):
+        if given and args.fixed_errors:
+            print(f"error: {option} needs the draws; with --fixed-errors there are none", file=sys.stderr)
+            return 2
     settings = replace(closed_loop.Settings(), seconds=args.seconds, supply=args.supply)
     try:
         changes = build_variants(args.estimators, args.sets)
@@ -246,7 +251,11 @@ def main(argv=None) -> int:
         if args.fixed_errors:
             return loaded[name]
         return error_ranges.drawn(loaded[name], seed, args.imu, tuple(args.without))
-    jobs = [(scenario_of(s, seed), changes[e], e, seed, settings)
+    def changes_of(estimator, scenario):
+        if not args.sizes_as_drawn:
+            return changes[estimator]
+        return {**changes[estimator], **variants.edits(None, error_ranges.stated_sizes(scenario))}
+    jobs = [(scenario_of(s, seed), changes_of(e, scenario_of(s, seed)), e, seed, settings)
             for s in args.scenarios for e in args.estimators for seed in range(args.draws)]
     t0 = time.monotonic()
     results = run_jobs(jobs, args.jobs)
@@ -271,6 +280,7 @@ def main(argv=None) -> int:
     errors = ("each seed's errors drawn across the ranges (" + error_ranges.ranges_text() + ")"
               + (f", but the IMU's from its `{args.imu}` profile (uavarm/sim/imu_model.py)" if args.imu else "")
               + "".join(f", without the {name.replace('-', ' ')} error" for name in args.without)
+              + ("; the split told each draw's own error sizes" if args.sizes_as_drawn else "")
               if not args.fixed_errors else
               "each scenario's own stated errors, IMU profile " + ", ".join(f"{n}: {sc.imu_profile}"
                                                                           for n, sc in loaded.items()))
