@@ -217,6 +217,13 @@ def test_report_refuses_a_draws_option_without_draws(option, tmp_path, capsys):
     assert not (tmp_path / "report.md").exists()
 
 
+@pytest.mark.parametrize("option", [["--preflight", "-1"], ["--preflight", "inf"], ["--seconds", "nan"]])
+def test_report_refuses_durations_it_cannot_run(option, tmp_path, capsys):
+    rc = sim_report.main(["--out", str(tmp_path), *option, "--seeds", "1"])
+    assert rc == 2 and "--preflight at least 0" in capsys.readouterr().err
+    assert not (tmp_path / "report.md").exists()
+
+
 def test_report_writes_the_markdown_table(tmp_path):
     rc = sim_report.main(["--out", str(tmp_path), "--estimators", "model", "--scenarios", "bench", "hover",
                           "--seconds", "1", "--seeds", "1", "--jobs", "1"])

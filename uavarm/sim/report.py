@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import multiprocessing
 import re
 import sys
@@ -228,6 +229,8 @@ def main(argv=None) -> int:
                          "slow and white errors, the accelerometer bias's spread): a filter that knows each drone's "
                          "sizes, though not its errors")
     ap.add_argument("--seconds", type=float, default=REPORT_SECONDS)
+    ap.add_argument("--preflight", type=float, default=closed_loop.Settings.preflight, metavar="SECONDS",
+                    help="on the ground from power-up before the flight, still and level (default: %(default)s)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--supply", type=float, default=None, metavar="VOLTS",
                     help="the simulated servos' battery, open circuit (default: ax12_sim.Supply's)")
@@ -236,7 +239,10 @@ def main(argv=None) -> int:
         if given and args.fixed_errors:
             print(f"error: {option} needs the draws; with --fixed-errors there are none", file=sys.stderr)
             return 2
-    settings = replace(closed_loop.Settings(), seconds=args.seconds, supply=args.supply)
+    if not (math.isfinite(args.seconds) and args.seconds > 0 and math.isfinite(args.preflight) and args.preflight >= 0):
+        print("error: --seconds must be above 0 and --preflight at least 0", file=sys.stderr)
+        return 2
+    settings = replace(closed_loop.Settings(), seconds=args.seconds, supply=args.supply, preflight=args.preflight)
     try:
         changes = build_variants(args.estimators, args.sets)
         loaded = {name: scenarios.load(name) for name in args.scenarios}

@@ -114,8 +114,9 @@ static inline float sample_dt(stab_t *s, uint32_t now_us)
  * between its highest and lowest reading. The MPU-6050 at rest spreads about 0.1 deg/s and
  * 15 mg (6 sigma of its noise through the 21 Hz DLPF); a hand on the drone, or its props
  * turning, far more. The window restarts at every sample that spreads it too far; its mean
- * gyro, turned into base axes, is the bias, and its mean specific force the up direction
- * (the attitude levelled on it: no error left standing for the bias to chase). */
+ * gyro, turned into base axes, is the bias, and its mean specific force, less the
+ * accelerometer's bias learnt so far, the up direction (the attitude levelled on it: no
+ * error left standing for the gyro's bias to chase, and the split's turns kept). */
 #define STILL_SAMPLES 100u
 #define STILL_GYRO_SPREAD 0.0087f     /* 0.5 deg/s */
 #define STILL_ACCEL_SPREAD 0.03f
@@ -139,6 +140,7 @@ static __attribute__((noinline)) void bias_at_rest(stab_t *s, const float accel_
     if (++s->still_n == STILL_SAMPLES) {
         float mean[6], base[3];
         for (int i = 0; i < 6; ++i) mean[i] = s->still_sum[i] * (1.0f / (float)STILL_SAMPLES);
+        for (int i = 0; i < 3; ++i) mean[3 + i] -= s->velocity.accel_bias[i];
         est_quat_reset(&s->quat, &mean[3]);              /* level on the mean up, bias zero */
         est_rate(mean, ZERO, base);                      /* the mean gyro in base axes */
         for (int i = 0; i < 3; ++i) base[i] = -base[i];
@@ -353,6 +355,12 @@ static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
  * expects; else the fixed gains. */
 #define SPLIT_KALMAN (MODEL_SPLIT_BIAS_VAR > 0.0f)
 
+/* Not engaged, the split starts once the velocity has been fresh for this long (s): the
+ * drone's attitude heard before it corrected with link_gain, turning the estimate without
+ * the bias, and the velocity loop (a triple pole at k_v / 3) takes that turn back, to 1.4 %
+ * at 8 / pole (the split, starting sooner, would take that for the bias moving). */
+#define SPLIT_SETTLE_S (24.0f / MODEL_VEL_K_V)
+
 /* One message's split by the Kalman filter of x = (the estimate's tilt error, fc_error's
  * error) per base axis, measured as err = x1 - x0 + white: x0 the bias's tilt (prior
  * accel_bias_prior_g, a random walk of accel_bias_walk_g a minute), x1 first-order Markov
@@ -428,16 +436,18 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
     /* the error left after each correction is (bias error) x (message period) / link_gain, so
      * this moves the bias at link_bias_gain / link_gain per second, whatever the message rate */
     est_bias_update(s->quat.bias, err, aided ? MODEL_LINK_BIAS_GAIN_WITH_VELOCITY : MODEL_LINK_BIAS_GAIN);
-    if (aided && fresh && (!SPLIT || s->engaged)) {
+    const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+    s->aided_s = aided ? fminf(s->aided_s + h, SPLIT_SETTLE_S) : 0.0f;
+    if (aided && fresh && (!SPLIT || s->engaged || s->aided_s >= SPLIT_SETTLE_S)) {
         /* What is left of the disagreement (err) is the flight controller's slowly varying
          * error or, split, also the accelerometer's bias across up (velocity.py): fc_error
          * moves towards the estimate and, split, the estimate towards the flight controller,
          * with the bias that holds it there (the velocity keeps agreeing), by the split's
          * Kalman filter or by fixed gains (fc_error_gain, accel_bias_attitude_gain: per second
-         * of the drone's time, fc_error fading at 1 / fc_error_tau). Split, only in flight:
-         * the arm at rest is levelled on the accelerometer as it reads, bias and all, which
-         * would leave the whole disagreement to fc_error. */
-        const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
+         * of the drone's time, fc_error fading at 1 / fc_error_tau). Split, from engage or,
+         * on the ground, once the velocity has settled: the time before take-off teaches the
+         * split as flight does (the arm at rest levelled on the accelerometer less the bias
+         * learnt keeps what it turned). */
         float learn[3], turn[3], across[3];
         if (SPLIT && SPLIT_KALMAN) {
             split_by_kalman(s, h, err, turn, learn);
