@@ -86,7 +86,10 @@ TARGETS = (
                "a_second_at_rest_measures_the_whole_gyro_bias", "no_bias_is_taken_while_the_board_moves",
                "the_stillness_threshold_is_half_a_degree_per_second", "a_jolt_starts_the_window_again",
                "gyro_bias_is_learnt_at_rest", "a_vibrating_accelerometer_is_not_still",
-               "each_second_at_rest_measures_the_bias_again"))),
+               "each_second_at_rest_measures_the_bias_again"))
+           + tuple(f"tests/test_velocity_aiding.py::test_{name}" for name in (
+               "on_the_ground_the_split_waits_for_the_velocity_to_settle_then_learns",
+               "a_still_board_standing_tilted_levels_where_the_velocity_held_it"))),
     Target("stabiliser.c: the drone's messages", "firmware_stm32/App/Src/stabiliser.c",
            (("c", "stream_fresh"), ("c", "history_at"), ("c", "admit"), ("c", "take"), ("c", "move_fc_error"),
             ("c", "stab_drone_attitude"), ("c", "shift_velocity"), ("c", "stab_drone_velocity")),

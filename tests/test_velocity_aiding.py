@@ -442,6 +442,21 @@ def test_on_the_ground_the_split_waits_for_the_velocity_to_settle_then_learns(fw
     assert abs(run.errors[-1] - unlearnt_deg) < 0.05, (run.errors[-1], unlearnt_deg)
 
 
+def test_a_still_board_standing_tilted_levels_where_the_velocity_held_it(fw):
+    """Standing 10 deg nose down, not engaged, the accelerometer 30 mg off along its z: the
+    velocity learns the bias's part along up within seconds (its part across up stays, a
+    tilt error of about 0.3 deg, before the split starts). With the drone's messages gone,
+    each still second levels the board on the accelerometer less the whole bias learnt, all
+    three axes of it: the tilt error stays what the velocity left."""
+    flight = Flight(lambda t: Rotation.from_euler("Y", 10.0, degrees=True), at_rest)
+    run = Run(fw, flight, accel_bias=(0.0, 0.0, 0.03), engaged=False).run(20.0, attitude_error=(0.0, 0.0))
+    held = run.errors[-1]
+    assert not run.s.split_started and 0.1 < held < 0.5, held
+    run.run(3.0, send_velocity=False)
+    assert not run.lib.stab_velocity_fresh(run.s, run.t_us)
+    assert abs(run.errors[-1] - held) < 0.05, (run.errors[-1], held)
+
+
 def kalman_step(p, h):
     """The textbook step of the split's filter (velocity.py) from covariance p (2 x 2) over
     h s: predict (x0 a random walk of accel_bias_walk_g a minute, x1 first-order Markov of

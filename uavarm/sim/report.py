@@ -257,11 +257,13 @@ def main(argv=None) -> int:
         if args.fixed_errors:
             return loaded[name]
         return error_ranges.drawn(loaded[name], seed, args.imu, tuple(args.without))
+
     def changes_of(estimator, scenario):
         if not args.sizes_as_drawn:
             return changes[estimator]
         return {**changes[estimator], **variants.edits(None, error_ranges.stated_sizes(scenario))}
-    jobs = [(scenario_of(s, seed), changes_of(e, scenario_of(s, seed)), e, seed, settings)
+    drawn = {(s, seed): scenario_of(s, seed) for s in args.scenarios for seed in range(args.draws)}
+    jobs = [(drawn[s, seed], changes_of(e, drawn[s, seed]), e, seed, settings)
             for s in args.scenarios for e in args.estimators for seed in range(args.draws)]
     t0 = time.monotonic()
     results = run_jobs(jobs, args.jobs)
