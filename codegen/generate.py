@@ -489,6 +489,7 @@ def estimator_params(m: config.Model):
         # the split's Kalman filter: variances in rad^2 (a bias of b g tilts the estimate by b rad)
         "split_bias_var": float32_literal(velocity.split_noises(m)["bias_var"]),
         "split_fc_var": float32_literal(velocity.split_noises(m)["fc_var"]),
+        "split_settle": float32_literal(velocity.settle_s(e.velocity_bandwidth)),
         **gate_params(e),
         # one time constant of the alignment, at most 1 s (the attitude at rest, the gyro's offset begun)
         "settle_samples": int(sp.ceiling(sp.nsimplify(m.sample_rate, rational=True)

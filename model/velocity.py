@@ -157,6 +157,14 @@ def gains(bandwidth: float) -> dict[str, sp.Expr]:
     return {"k_v": 3 * w, "k_t": 3 * w ** 2 / G, "k_b": w ** 3 / G}
 
 
+def settle_s(bandwidth: float) -> sp.Expr:
+    """s for the velocity loop (gains: a triple pole at w_n) to take back a turn it did not
+    make: (1 + w t + (w t)^2 / 2) e^(-w t) is 1.4 % at w t = 8. Not engaged, the split waits
+    this long after the velocity became fresh (the drone's attitude heard before it turned
+    the estimate without the bias)."""
+    return 8 / sp.nsimplify(bandwidth, rational=True)
+
+
 def accel_bias_gains(bandwidth: float) -> dict[str, sp.Expr]:
     """k_u (1/s), k_a (g per m/s per s) of the bandwidth w_a (rad/s) along up."""
     w = sp.nsimplify(bandwidth, rational=True)

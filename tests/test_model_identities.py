@@ -71,3 +71,18 @@ def test_the_splits_prediction_is_first_order_markov(model):
     assert np.isclose(p11, fc2 * (1 - np.exp(-2 * float(h / tau))), rtol=float(h / tau))
     assert np.isclose(p01, 1e-5 * np.exp(-float(h / tau)), rtol=float(h / tau) ** 2 * 2)
     assert np.isclose(p00, e.accel_bias_walk_g ** 2 / 60 * float(h), rtol=1e-12)
+
+
+def test_the_split_waits_until_the_velocity_loop_has_taken_back_all_but_a_seventieth(model):
+    """The velocity loop's gains place a triple pole at the bandwidth (its characteristic
+    polynomial s^3 + k_v s^2 + g k_t s + g k_b is (s + w)^3), whose slowest response to an
+    initial error is (1 + w t + (w t)^2 / 2) e^(-w t); settle_s is where that is under 1.5 %."""
+    s, t = sp.symbols("s t", positive=True)
+    w = sp.nsimplify(model.estimator.velocity_bandwidth, rational=True)
+    k = velocity.gains(model.estimator.velocity_bandwidth)
+    gap = sp.Poly(s ** 3 + k["k_v"] * s ** 2 + velocity.G * k["k_t"] * s + velocity.G * k["k_b"] - (s + w) ** 3, s)
+    assert all(abs(c) < 1e-30 for c in gap.all_coeffs())       # (G is a float: exact to its digits)
+    left = (1 + w * t + (w * t) ** 2 / 2) * sp.exp(-w * t)
+    settle = velocity.settle_s(model.estimator.velocity_bandwidth)
+    assert 0.013 < float(left.subs(t, settle)) < 0.015
+    assert float(left.subs(t, settle / 2)) > 0.2          # half as long would leave a fifth

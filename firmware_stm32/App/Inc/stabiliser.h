@@ -93,7 +93,7 @@ typedef struct {
      * the bias, fc_error's error) as P00, P01, P11 (rad^2); set at the first split message */
     float split_p[3][3];
     bool split_started;
-    float aided_s;                 /* drone seconds the velocity has been fresh at the attitude's messages (to SPLIT_SETTLE_S) */
+    float aided_s;                 /* drone seconds the velocity has been fresh at the attitude's messages (to MODEL_SPLIT_SETTLE) */
     uint32_t vel_restarts;         /* velocity estimates restarted (first message, or a jump) */
     bool corrected;                /* a drone message corrected the attitude since the reset ... */
     uint32_t corrected_us;         /* ... at this local time (the gate widens with the time since) */

@@ -355,12 +355,6 @@ static stab_link_status_t refuse(stab_stream_t *st, stab_link_status_t why)
  * expects; else the fixed gains. */
 #define SPLIT_KALMAN (MODEL_SPLIT_BIAS_VAR > 0.0f)
 
-/* Not engaged, the split starts once the velocity has been fresh for this long (s): the
- * drone's attitude heard before it corrected with link_gain, turning the estimate without
- * the bias, and the velocity loop (a triple pole at k_v / 3) takes that turn back, to 1.4 %
- * at 8 / pole (the split, starting sooner, would take that for the bias moving). */
-#define SPLIT_SETTLE_S (24.0f / MODEL_VEL_K_V)
-
 /* One message's split by the Kalman filter of x = (the estimate's tilt error, fc_error's
  * error) per base axis, measured as err = x1 - x0 + white: x0 the bias's tilt (prior
  * accel_bias_prior_g, a random walk of accel_bias_walk_g a minute), x1 first-order Markov
@@ -436,9 +430,13 @@ stab_link_status_t stab_drone_attitude(stab_t *s, uint16_t seq, uint32_t stamp_u
     /* the error left after each correction is (bias error) x (message period) / link_gain, so
      * this moves the bias at link_bias_gain / link_gain per second, whatever the message rate */
     est_bias_update(s->quat.bias, err, aided ? MODEL_LINK_BIAS_GAIN_WITH_VELOCITY : MODEL_LINK_BIAS_GAIN);
+    /* Not engaged, the split waits for the velocity to settle (MODEL_SPLIT_SETTLE s fresh):
+     * the drone's attitude heard before it corrected with link_gain, turning the estimate
+     * without the bias, and the velocity loop takes that turn back, which the split, started
+     * sooner, would take for the bias moving. */
     const float h = fminf((float)(stamp_us - last_stamp) * 1e-6f, (float)MODEL_LINK_TIMEOUT_US * 1e-6f);
-    s->aided_s = aided ? fminf(s->aided_s + h, SPLIT_SETTLE_S) : 0.0f;
-    if (aided && fresh && (!SPLIT || s->engaged || s->aided_s >= SPLIT_SETTLE_S)) {
+    s->aided_s = aided ? fminf(s->aided_s + h, MODEL_SPLIT_SETTLE) : 0.0f;
+    if (aided && fresh && (!SPLIT || s->engaged || s->aided_s >= MODEL_SPLIT_SETTLE)) {
         /* What is left of the disagreement (err) is the flight controller's slowly varying
          * error or, split, also the accelerometer's bias across up (velocity.py): fc_error
          * moves towards the estimate and, split, the estimate towards the flight controller,
